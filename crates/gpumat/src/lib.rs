@@ -1,0 +1,53 @@
+//! # gpumat
+//!
+//! A cuMat-style linear-algebra library (thesis ch. 3): batched dense matrices, lazy
+//! expressions fused into one pass, reductions, 3x3 block scalars, block-sparse (BSR)
+//! matrices on a shared pattern, batched preconditioned CG and a direct sparse Cholesky.
+//! The CPU backend runs the fused loops on rayon; the CUDA backend is a later addition
+//! ([`backend`]).
+//!
+//! ```
+//! use gpumat::{Matrix, Axes};
+//! let a = Matrix::<f32>::from_fn(4, 1, 2, |r, _, b| (r + 4 * b) as f32);
+//! let b = Matrix::<f32>::constant(4, 1, 1, 1.0); // one batch, broadcast to two
+//! let mut d = Matrix::<f32>::zeros(4, 1, 2);
+//! d.assign(a.ex() + b.ex() * 2.0 + a.ex().sqrt()); // one pass, no temporary
+//! assert_eq!(d.get(3, 0, 1), 7.0 + 2.0 + 7f32.sqrt());
+//! let per_batch = d.ex().sum_over(Axes::ROWS); // 1 x 1 x 2
+//! assert_eq!(per_batch.batches(), 2);
+//! ```
+//!
+//! Block scalars work everywhere a real does:
+//!
+//! ```
+//! use gpumat::{Mat3, SparseMatrix, Matrix, Vec3};
+//! let a = SparseMatrix::from_triplets(2, 2, &[(0, 0, Mat3::<f64>::identity()), (1, 1, Mat3::from_scalar(2.0))]);
+//! let x = Matrix::column(&[Vec3::new(1.0, 2.0, 3.0), Vec3::new(1.0, 1.0, 1.0)]);
+//! let y = Matrix::eval(&a * &x); // BSR SpMV
+//! assert_eq!(y.get(1, 0, 0), Vec3::splat(2.0));
+//! ```
+
+pub mod backend;
+mod block;
+pub mod cuda_codegen;
+mod error;
+pub mod expr;
+mod matrix;
+pub mod ops;
+mod product;
+mod scalar;
+pub mod solve;
+pub mod sparse;
+pub mod stats;
+
+pub use block::{Mat3, Mat3d, Mat3f, Vec3, Vec3d, Vec3f};
+pub use error::Error;
+pub use expr::{constant, identity, scalar, zeros, Axes, Ex, Expr};
+pub use matrix::{Matrix, Shape};
+pub use product::{matmul, matmul_into};
+pub use scalar::{CastFrom, Real, Scalar, ScalarMul};
+pub use solve::{
+    cg, BlockJacobi, CgError, CgInfo, CgParams, IdentityPreconditioner, Jacobi, LinearOperator,
+    Preconditioner, SparseCholesky,
+};
+pub use sparse::{BlockScalar, SparseMatrix, SparsityPattern};

@@ -1,0 +1,130 @@
+//! The one table of element-wise operations (architecture principle 1).
+//!
+//! Each entry gives the operation's name, its CUDA text (a format string over the operands
+//! `{0}`, `{1}`) and its Rust function on one real lane. The CPU backend calls the Rust
+//! function inside the fused assignment loop; the CUDA backend pastes the text into the one
+//! generated kernel (see [`crate::cuda_codegen`]). Adding an operation means adding one line
+//! here and one method on [`crate::Ex`].
+
+use crate::scalar::Real;
+
+/// A lane-wise unary operation.
+pub trait UnaryOp: Copy + Send + Sync + std::fmt::Debug + 'static {
+    /// Name of the operation.
+    const NAME: &'static str;
+    /// CUDA text, `{0}` is the operand.
+    const CUDA: &'static str;
+    /// The operation on one lane.
+    fn apply<R: Real>(x: R) -> R;
+}
+
+/// A lane-wise binary operation (both operands of the same element type).
+pub trait BinaryOp: Copy + Send + Sync + std::fmt::Debug + 'static {
+    /// Name of the operation.
+    const NAME: &'static str;
+    /// CUDA text, `{0}` and `{1}` are the operands.
+    const CUDA: &'static str;
+    /// The operation on one lane.
+    fn apply<R: Real>(a: R, b: R) -> R;
+}
+
+macro_rules! unary_ops {
+    ($($(#[$doc:meta])* $ty:ident, $name:literal, $cuda:literal, |$x:ident| $body:expr;)*) => {
+        $(
+            $(#[$doc])*
+            #[derive(Clone, Copy, Debug, Default)]
+            pub struct $ty;
+            impl UnaryOp for $ty {
+                const NAME: &'static str = $name;
+                const CUDA: &'static str = $cuda;
+                #[inline(always)]
+                fn apply<R: Real>($x: R) -> R { $body }
+            }
+        )*
+        /// Every unary operation as `(name, CUDA text)`.
+        pub const UNARY_TABLE: &[(&str, &str)] = &[$(($name, $cuda)),*];
+        /// Evaluates the unary operation called `name` on `x` (for tests and tools).
+        pub fn unary_by_name<R: Real>(name: &str, x: R) -> Option<R> {
+            match name { $($name => Some(<$ty as UnaryOp>::apply(x)),)* _ => None }
+        }
+    };
+}
+
+macro_rules! binary_ops {
+    ($($(#[$doc:meta])* $ty:ident, $name:literal, $cuda:literal, |$a:ident, $b:ident| $body:expr;)*) => {
+        $(
+            $(#[$doc])*
+            #[derive(Clone, Copy, Debug, Default)]
+            pub struct $ty;
+            impl BinaryOp for $ty {
+                const NAME: &'static str = $name;
+                const CUDA: &'static str = $cuda;
+                #[inline(always)]
+                fn apply<R: Real>($a: R, $b: R) -> R { $body }
+            }
+        )*
+        /// Every binary operation as `(name, CUDA text)`.
+        pub const BINARY_TABLE: &[(&str, &str)] = &[$(($name, $cuda)),*];
+    };
+}
+
+unary_ops! {
+    /// `-x`
+    Neg, "neg", "(-{0})", |x| -x;
+    /// `sqrt(x)`
+    Sqrt, "sqrt", "sqrt({0})", |x| x.sqrt();
+    /// `1/sqrt(x)`
+    Rsqrt, "rsqrt", "rsqrt({0})", |x| x.sqrt().recip();
+    /// `|x|`
+    Abs, "abs", "fabs({0})", |x| x.abs();
+    /// `e^x`
+    Exp, "exp", "exp({0})", |x| x.exp();
+    /// `ln x`
+    Log, "log", "log({0})", |x| x.ln();
+    /// `ln(1 + x)`
+    Log1p, "log1p", "log1p({0})", |x| x.ln_1p();
+    /// `sin x`
+    Sin, "sin", "sin({0})", |x| x.sin();
+    /// `cos x`
+    Cos, "cos", "cos({0})", |x| x.cos();
+    /// `tan x`
+    Tan, "tan", "tan({0})", |x| x.tan();
+    /// `tanh x`
+    Tanh, "tanh", "tanh({0})", |x| x.tanh();
+    /// `x^2`
+    Square, "square", "(({0}) * ({0}))", |x| x * x;
+    /// `x^3`
+    Cube, "cube", "(({0}) * ({0}) * ({0}))", |x| x * x * x;
+    /// `1/x`
+    Inverse, "inverse", "(1 / ({0}))", |x| x.recip();
+    /// `floor x`
+    Floor, "floor", "floor({0})", |x| x.floor();
+    /// `ceil x`
+    Ceil, "ceil", "ceil({0})", |x| x.ceil();
+    /// sign of x (-1, 0, 1)
+    Sign, "sign", "((({0}) > 0) - (({0}) < 0))", |x| if x > R::ZERO { R::ONE } else if x < R::ZERO { -R::ONE } else { R::ZERO };
+}
+
+binary_ops! {
+    /// `a + b`
+    AddOp, "add", "({0} + {1})", |a, b| a + b;
+    /// `a - b`
+    SubOp, "sub", "({0} - {1})", |a, b| a - b;
+    /// `a / b`
+    DivOp, "div", "({0} / {1})", |a, b| a / b;
+    /// `min(a, b)`
+    MinOp, "min", "fmin({0}, {1})", |a, b| a.min(b);
+    /// `max(a, b)`
+    MaxOp, "max", "fmax({0}, {1})", |a, b| a.max(b);
+    /// `a^b`
+    PowOp, "pow", "pow({0}, {1})", |a, b| a.powf(b);
+}
+
+/// Fills a CUDA template with operand texts.
+pub fn fill_cuda(template: &str, operands: &[&str]) -> String {
+    let mut out = template.to_string();
+    for (i, op) in operands.iter().enumerate() {
+        out = out.replace(&format!("{{{i}}}"), op);
+    }
+    out
+}

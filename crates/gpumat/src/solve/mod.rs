@@ -1,0 +1,37 @@
+//! Linear solvers: batched preconditioned conjugate gradients (thesis sec. 3.4, Alg. 4.1) and a
+//! direct sparse Cholesky solver (faer) usable alone, as a fallback, or as a preconditioner.
+
+mod cg;
+mod cholesky;
+mod precond;
+
+pub use cg::{cg, CgError, CgInfo, CgParams};
+pub use cholesky::SparseCholesky;
+pub use precond::{BlockJacobi, IdentityPreconditioner, Jacobi};
+
+use crate::matrix::Matrix;
+use crate::scalar::{Scalar, ScalarMul};
+use crate::sparse::SparseMatrix;
+
+/// A linear map on batched vectors (`n x 1 x batches`).
+pub trait LinearOperator<T: Scalar>: Sync {
+    /// The dimension `n` (rows = columns).
+    fn dim(&self) -> usize;
+    /// `y = A x`, batch by batch.
+    fn apply(&self, x: &Matrix<T>, y: &mut Matrix<T>);
+}
+
+impl<M: Scalar + ScalarMul<T, Output = T>, T: Scalar> LinearOperator<T> for SparseMatrix<M> {
+    fn dim(&self) -> usize {
+        self.rows()
+    }
+    fn apply(&self, x: &Matrix<T>, y: &mut Matrix<T>) {
+        y.assign(self * x);
+    }
+}
+
+/// An approximate inverse `z = P^-1 r`.
+pub trait Preconditioner<T: Scalar>: Sync {
+    /// `z = P^-1 r`.
+    fn apply(&self, r: &Matrix<T>, z: &mut Matrix<T>);
+}

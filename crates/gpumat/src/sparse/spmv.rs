@@ -1,0 +1,196 @@
+//! Sparse products and the sparse leaf as expression nodes.
+//!
+//! `y = A x`: `y(r, c, b) = sum_{k in row r} A_k(b) * x(col_k, c, b)`, where `*` is the block
+//! product ([`ScalarMul`]): `Mat3 * Vec3` for BSR. Each output row is computed by one thread
+//! from its own row of the pattern, so no atomics are needed and the result is deterministic.
+//! `A^T x` uses the cached [`super::TransposeMap`] to do the same row by row.
+
+use super::matrix::SparseMatrix;
+use super::pattern::SparsityPattern;
+use crate::cuda_codegen::CudaGen;
+use crate::expr::Expr;
+use crate::matrix::Shape;
+use crate::scalar::{Scalar, ScalarMul};
+
+/// `A * x` with a sparse `A` and a dense expression `x` (`cols(A) x k x batches`).
+#[derive(Clone, Copy, Debug)]
+pub struct SpMV<'a, T: Scalar, E> {
+    a: &'a SparseMatrix<T>,
+    x: E,
+    shape: Shape,
+}
+
+fn product_shape(a: Shape, x: Shape, op: &str) -> Shape {
+    assert_eq!(
+        a.cols, x.rows,
+        "gpumat::{op}: matrix has {} columns, vector has {} rows",
+        a.cols, x.rows
+    );
+    let batches = Shape::new(1, 1, a.batches)
+        .broadcast(Shape::new(1, 1, x.batches), op)
+        .batches;
+    Shape::new(a.rows, x.cols, batches)
+}
+
+impl<'a, T: Scalar, E: Expr> SpMV<'a, T, E>
+where
+    T: ScalarMul<E::Elem>,
+{
+    /// The node; panics when the shapes do not match.
+    #[track_caller]
+    pub fn new(a: &'a SparseMatrix<T>, x: E) -> Self {
+        const { assert!(!E::SELF_REF, "gpumat: SpMV cannot read the destination it writes") };
+        let shape = product_shape(a.shape(), x.shape(), "spmv");
+        Self { a, x, shape }
+    }
+}
+
+impl<T: Scalar, E: Expr> Expr for SpMV<'_, T, E>
+where
+    T: ScalarMul<E::Elem>,
+{
+    type Elem = <T as ScalarMul<E::Elem>>::Output;
+    fn shape(&self) -> Shape {
+        self.shape
+    }
+    fn linear(&self, _out: Shape) -> bool {
+        false
+    }
+    #[inline(always)]
+    unsafe fn at(&self, r: usize, c: usize, b: usize) -> Self::Elem {
+        let p = self.a.pattern();
+        let nnz = p.nnz();
+        let bv = if self.a.batches() == 1 { 0 } else { b };
+        let values = self.a.values();
+        let mut acc = Self::Elem::ZERO;
+        // SAFETY: `r < rows` (the caller stays inside the output shape), the pattern was
+        // validated (row_ptr has rows+1 entries, col_idx values < cols = x.rows), and the
+        // value index `bv * nnz + k` is inside the values of batch `bv`.
+        unsafe {
+            let (start, end) = (*p.row_ptr().get_unchecked(r), *p.row_ptr().get_unchecked(r + 1));
+            for k in start..end {
+                let col = *p.col_idx().get_unchecked(k);
+                let v = *values.get_unchecked(bv * nnz + k);
+                acc = acc.add(v.smul(self.x.at(col, c, b)));
+            }
+        }
+        acc
+    }
+    #[inline(always)]
+    unsafe fn at_linear(&self, _i: usize) -> Self::Elem {
+        unreachable!("gpumat::SpMV is never evaluated linearly")
+    }
+    fn cuda(&self, g: &mut CudaGen) -> String {
+        let x = self.x.cuda(g);
+        let vals = g.load(T::CUDA_TYPE, Shape::new(self.a.nnz(), 1, self.a.batches()));
+        format!("gpumat_csr_row_dot(r, /*values*/ {vals}, /*x*/ {x})")
+    }
+}
+
+/// `A^T * x` (blocks transposed), evaluated row by row through the transpose map.
+#[derive(Clone, Copy, Debug)]
+pub struct SpMVT<'a, T: Scalar, E> {
+    a: &'a SparseMatrix<T>,
+    x: E,
+    shape: Shape,
+}
+
+impl<'a, T: Scalar, E: Expr> SpMVT<'a, T, E>
+where
+    T: ScalarMul<E::Elem>,
+{
+    /// The node; panics when the shapes do not match.
+    #[track_caller]
+    pub fn new(a: &'a SparseMatrix<T>, x: E) -> Self {
+        const { assert!(!E::SELF_REF, "gpumat: SpMV cannot read the destination it writes") };
+        let shape = product_shape(a.shape().transposed(), x.shape(), "spmv_transposed");
+        a.pattern().transpose_map();
+        Self { a, x, shape }
+    }
+}
+
+impl<T: Scalar, E: Expr> Expr for SpMVT<'_, T, E>
+where
+    T: ScalarMul<E::Elem>,
+{
+    type Elem = <T as ScalarMul<E::Elem>>::Output;
+    fn shape(&self) -> Shape {
+        self.shape
+    }
+    fn linear(&self, _out: Shape) -> bool {
+        false
+    }
+    #[inline(always)]
+    unsafe fn at(&self, r: usize, c: usize, b: usize) -> Self::Elem {
+        let p = self.a.pattern();
+        let t = p.transpose_map();
+        let nnz = p.nnz();
+        let bv = if self.a.batches() == 1 { 0 } else { b };
+        let values = self.a.values();
+        let mut acc = Self::Elem::ZERO;
+        // SAFETY: `r < cols(A)`; the transpose map is built from the validated pattern, so its
+        // pointers and indices are in range, and `row < rows(A) = x.rows`.
+        unsafe {
+            let (start, end) = (*t.col_ptr.get_unchecked(r), *t.col_ptr.get_unchecked(r + 1));
+            for j in start..end {
+                let row = *t.row_idx.get_unchecked(j);
+                let k = *t.entry.get_unchecked(j);
+                let v = values.get_unchecked(bv * nnz + k).transpose();
+                acc = acc.add(v.smul(self.x.at(row, c, b)));
+            }
+        }
+        acc
+    }
+    #[inline(always)]
+    unsafe fn at_linear(&self, _i: usize) -> Self::Elem {
+        unreachable!("gpumat::SpMVT is never evaluated linearly")
+    }
+    fn cuda(&self, g: &mut CudaGen) -> String {
+        let x = self.x.cuda(g);
+        let vals = g.load(T::CUDA_TYPE, Shape::new(self.a.nnz(), 1, self.a.batches()));
+        format!("gpumat_csc_col_dot(r, /*values*/ {vals}, /*x*/ {x})")
+    }
+}
+
+/// Leaf: a sparse matrix read element-wise (zero off the pattern). In a sparse view over the
+/// same pattern it is read by entry index, without searching.
+#[derive(Clone, Copy, Debug)]
+pub struct SparseRef<'a, T: Scalar> {
+    a: &'a SparseMatrix<T>,
+}
+impl<'a, T: Scalar> SparseRef<'a, T> {
+    /// The leaf.
+    pub fn new(a: &'a SparseMatrix<T>) -> Self {
+        Self { a }
+    }
+}
+impl<T: Scalar> Expr for SparseRef<'_, T> {
+    type Elem = T;
+    fn shape(&self) -> Shape {
+        self.a.shape()
+    }
+    fn linear(&self, _out: Shape) -> bool {
+        false
+    }
+    #[inline(always)]
+    unsafe fn at(&self, r: usize, c: usize, b: usize) -> T {
+        let bv = if self.a.batches() == 1 { 0 } else { b };
+        self.a.get(r, c, bv)
+    }
+    #[inline(always)]
+    unsafe fn at_linear(&self, _i: usize) -> T {
+        unreachable!("gpumat::SparseRef is never evaluated linearly")
+    }
+    #[inline(always)]
+    unsafe fn entry(&self, k: usize, _r: usize, _c: usize, b: usize) -> T {
+        let bv = if self.a.batches() == 1 { 0 } else { b };
+        // SAFETY: `sparse_compatible` held, so `k < nnz` indexes this matrix's own pattern.
+        unsafe { *self.a.values().get_unchecked(bv * self.a.nnz() + k) }
+    }
+    fn sparse_compatible(&self, p: &SparsityPattern) -> bool {
+        std::ptr::eq(&**self.a.pattern(), p) || **self.a.pattern() == *p
+    }
+    fn cuda(&self, g: &mut CudaGen) -> String {
+        g.load(T::CUDA_TYPE, Shape::new(self.a.nnz(), 1, self.a.batches()))
+    }
+}
