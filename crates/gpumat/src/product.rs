@@ -4,7 +4,7 @@
 //! evaluated eagerly into a new matrix (as in cuMat, where a product inside an expression is
 //! first evaluated into a temporary).
 
-use crate::matrix::Matrix;
+use crate::matrix::{Matrix, Shape};
 use crate::scalar::Real;
 use faer::linalg::matmul::matmul as faer_matmul;
 use faer::{Accum, Par};
@@ -20,7 +20,10 @@ use rayon::prelude::*;
 /// ```
 #[track_caller]
 pub fn matmul<R: Real>(a: &Matrix<R>, b: &Matrix<R>) -> Matrix<R> {
-    let batches = a.shape().broadcast(b.shape(), "matmul").batches;
+    // Only the batch dimensions broadcast; rows and columns follow the product rule.
+    let batches = Shape::new(1, 1, a.batches())
+        .broadcast(Shape::new(1, 1, b.batches()), "matmul")
+        .batches;
     let mut c = Matrix::zeros(a.rows(), b.cols(), batches);
     matmul_into(&mut c, a, b, R::ONE, false);
     c

@@ -55,7 +55,7 @@ pub trait Scalar: Copy + Send + Sync + Debug + PartialEq + Default + 'static {
     fn dot(self, other: Self) -> Self::Real {
         let mut acc = <Self::Real as Scalar>::ZERO;
         for i in 0..Self::LANES {
-            acc = acc + self.lane(i) * other.lane(i);
+            acc += self.lane(i) * other.lane(i);
         }
         acc
     }

@@ -5,7 +5,9 @@
 //! output element is computed independently, so the result does not depend on the thread
 //! count. When no node below needs broadcasting or reordering the tree is read by linear
 //! index (one contiguous stream per operand, which the compiler vectorizes); otherwise by
-//! `(r, c, b)` coordinates.
+//! `(r, c, b)` coordinates, in runs along the rows (so broadcast leaves stay vectorizable).
+//! On x86-64 CPUs with AVX2 the loops run in a copy compiled for AVX2 (runtime detection;
+//! the default target has only SSE2).
 
 use super::{Ex, Expr, SelfRef};
 use crate::matrix::{Matrix, Shape};
@@ -17,6 +19,100 @@ use rayon::prelude::*;
 pub const PAR_THRESHOLD: usize = 1 << 15;
 /// Elements per work item.
 const CHUNK: usize = 1 << 13;
+/// Outputs with at least this many rows are evaluated run by run along the rows when the tree
+/// cannot be read linearly; shorter columns are walked element by element.
+const MIN_RUN: usize = 16;
+
+/// Evaluates `e` at the output positions `start..start + chunk.len()` into `chunk`.
+///
+/// # Safety
+/// `e` broadcasts to `out`, `linear == e.linear(out)`, `out.rows > 0` and
+/// `start + chunk.len() <= out.len()`.
+#[inline(always)]
+unsafe fn eval_chunk<T: Scalar, E: Expr<Elem = T>>(
+    e: &E,
+    out: Shape,
+    linear: bool,
+    start: usize,
+    chunk: &mut [T],
+) {
+    if linear {
+        for (j, d) in chunk.iter_mut().enumerate() {
+            // SAFETY: `linear(out)` holds and `start + j < out.len()`.
+            *d = unsafe { e.at_linear(start + j) };
+        }
+    } else if out.rows >= MIN_RUN {
+        // Runs along the rows: within a run `c` and `b` are fixed, so every leaf's index is
+        // affine in `r` (or constant, for a leaf broadcast over rows) and the loop vectorizes
+        // like the linear one (a `1 x 1 x 1` scalar such as CG's step size no longer forces
+        // element-by-element index arithmetic).
+        let rows = out.rows;
+        let mut done = 0;
+        while done < chunk.len() {
+            let i = start + done;
+            let r0 = i % rows;
+            let cb = i / rows;
+            let (c, b) = (cb % out.cols, cb / out.cols);
+            let run = (rows - r0).min(chunk.len() - done);
+            for (j, d) in chunk[done..done + run].iter_mut().enumerate() {
+                // SAFETY: `r0 + j < rows`, and `(c, b)` is inside the output shape because
+                // `i < out.len()`; `e` broadcasts to it.
+                *d = unsafe { e.at(r0 + j, c, b) };
+            }
+            done += run;
+        }
+    } else {
+        let (rows, cols) = (out.rows, out.cols);
+        let mut r = start % rows;
+        let mut c = (start / rows) % cols;
+        let mut b = start / (rows * cols);
+        for d in chunk.iter_mut() {
+            // SAFETY: (r, c, b) enumerates the output shape, to which `e` broadcasts.
+            *d = unsafe { e.at(r, c, b) };
+            r += 1;
+            if r == rows {
+                r = 0;
+                c += 1;
+                if c == cols {
+                    c = 0;
+                    b += 1;
+                }
+            }
+        }
+    }
+}
+
+/// [`eval_chunk`] compiled with AVX2 enabled: the default x86-64 target only has 128-bit SSE2
+/// vectors, so the fused loops run about twice as fast on cache-resident data this way. The
+/// arithmetic per element is the same (no FMA contraction), so results are bitwise equal.
+///
+/// # Safety
+/// The CPU supports AVX2, and `eval_chunk`'s contract holds.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn eval_chunk_avx2<T: Scalar, E: Expr<Elem = T>>(
+    e: &E,
+    out: Shape,
+    linear: bool,
+    start: usize,
+    chunk: &mut [T],
+) {
+    // SAFETY: forwarded contract.
+    unsafe { eval_chunk(e, out, linear, start, chunk) }
+}
+
+/// True when the fused loops may use [`eval_chunk_avx2`] (detected once, then cached by std).
+#[inline]
+fn use_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
 
 /// Evaluates `e` into `dst` (shape `out`). `e` must broadcast to `out`.
 #[track_caller]
@@ -28,35 +124,23 @@ pub(crate) fn assign_slice<T: Scalar, E: Expr<Elem = T>>(dst: &mut [T], out: Sha
     );
     assert_eq!(dst.len(), out.len());
     stats::count_pass();
+    if dst.is_empty() {
+        return;
+    }
     let linear = e.linear(out);
+    let avx2 = use_avx2();
     let run = |start: usize, chunk: &mut [T]| {
-        if linear {
-            for (j, d) in chunk.iter_mut().enumerate() {
-                // SAFETY: `linear(out)` holds and `start + j < out.len()`.
-                *d = unsafe { e.at_linear(start + j) };
-            }
-        } else {
-            let (rows, cols) = (out.rows, out.cols);
-            let mut i = start;
-            let mut r = i % rows;
-            let mut c = (i / rows) % cols;
-            let mut b = i / (rows * cols);
-            for d in chunk.iter_mut() {
-                // SAFETY: (r, c, b) enumerates the output shape, to which `e` broadcasts.
-                *d = unsafe { e.at(r, c, b) };
-                i += 1;
-                r += 1;
-                if r == rows {
-                    r = 0;
-                    c += 1;
-                    if c == cols {
-                        c = 0;
-                        b += 1;
-                    }
-                }
-            }
-            let _ = i;
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            // SAFETY: AVX2 was detected on this CPU; `e` broadcasts to `out` (checked above),
+            // `linear` is `e.linear(out)`, `out` is not empty, and the chunk starting at
+            // `start` lies inside `dst`, which has `out.len()` elements.
+            unsafe { eval_chunk_avx2(e, out, linear, start, chunk) };
+            return;
         }
+        let _ = avx2;
+        // SAFETY: as above, without the AVX2 requirement.
+        unsafe { eval_chunk(e, out, linear, start, chunk) };
     };
     if dst.len() >= PAR_THRESHOLD {
         dst.par_chunks_mut(CHUNK)
@@ -153,3 +237,31 @@ macro_rules! compound_scale {
 }
 compound_scale!(f32);
 compound_scale!(f64);
+
+#[cfg(test)]
+mod tests {
+    use crate::Matrix;
+
+    /// The run-by-run path (rows >= MIN_RUN, a leaf broadcast over rows, chunks starting in
+    /// the middle of a column, parallel) gives exactly the element-by-element values.
+    #[test]
+    fn broadcast_runs_match_elementwise_values() {
+        let (rows, cols, batches) = (21, 3, 700);
+        let a = Matrix::<f32>::from_fn(rows, cols, batches, |r, c, b| (r + 7 * c + 13 * b) as f32 * 0.25);
+        let s = Matrix::<f32>::from_fn(1, cols, batches, |_, c, b| 1.0 + (c + b) as f32);
+        let mut d = Matrix::<f32>::zeros(rows, cols, batches);
+        d.assign(a.ex() + s.ex().cwise_mul(a.ex()));
+        for b in 0..batches {
+            for c in 0..cols {
+                for r in 0..rows {
+                    let (x, y) = (a.get(r, c, b), s.get(0, c, b));
+                    assert_eq!(d.get(r, c, b), x + y * x, "at ({r}, {c}, {b})");
+                }
+            }
+        }
+        let mut short = Matrix::<f32>::zeros(3, 2, 1);
+        let col = Matrix::<f32>::from_slice(3, 1, 1, &[1.0, 2.0, 3.0]);
+        short.assign(col.ex() + crate::scalar(1.0f32));
+        assert_eq!(short.as_slice(), &[2.0, 3.0, 4.0, 2.0, 3.0, 4.0]);
+    }
+}

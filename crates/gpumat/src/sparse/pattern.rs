@@ -51,10 +51,14 @@ impl SparsityPattern {
         if row_ptr[0] != 0 || row_ptr[rows] != col_idx.len() {
             return bad("row_ptr must start at 0 and end at the number of entries".into());
         }
+        // Monotonic pointers first: with row_ptr[0] = 0 and row_ptr[rows] = nnz they then
+        // stay in bounds, so slicing the rows below cannot panic.
         for r in 0..rows {
             if row_ptr[r] > row_ptr[r + 1] {
                 return bad(format!("row_ptr decreases at row {r}"));
             }
+        }
+        for r in 0..rows {
             let row = &col_idx[row_ptr[r]..row_ptr[r + 1]];
             for (k, &c) in row.iter().enumerate() {
                 if c >= cols {
@@ -141,7 +145,7 @@ impl SparsityPattern {
     pub fn entry_rows(&self) -> Vec<usize> {
         let mut rows = Vec::with_capacity(self.nnz());
         for r in 0..self.rows {
-            rows.extend(std::iter::repeat_n(r, self.row_range(r).len()));
+            rows.extend(std::iter::repeat(r).take(self.row_range(r).len()));
         }
         rows
     }
