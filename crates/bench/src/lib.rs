@@ -1,1 +1,44 @@
-//! Shared helpers for the benchmarks.
+//! Shared helpers for the benchmarks: the thesis' Appendix B cases (cuMat benchmarks B.1-B.4)
+//! rebuilt on `gpumat`, the timing policy, the STREAM triad, the Eigen and numpy peers and the
+//! report writers. The `tables` binary ties them together; the criterion suite
+//! (`benches/gpumat.rs`) reuses the same kernels at small sizes.
+
+pub mod lincomb;
+pub mod machine;
+pub mod peers;
+pub mod problems;
+pub mod report;
+pub mod stream;
+pub mod table_lincomb;
+pub mod table_sparse;
+pub mod thesis;
+pub mod timing;
+
+use peers::Peers;
+use timing::Policy;
+
+/// What every table function needs: the timing policy, the peers, the STREAM bandwidth.
+#[derive(Debug)]
+pub struct Ctx {
+    /// timing policy
+    pub policy: Policy,
+    /// Eigen and numpy, when available (and notes about them)
+    pub peers: Peers,
+    /// STREAM triad bandwidth, GB/s
+    pub stream_gbs: f64,
+    /// `--quick`
+    pub quick: bool,
+}
+
+/// `a / b` as a ratio, or `None` when either side is missing.
+pub fn ratio(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(a), Some(b)) if b > 0.0 => Some(a / b),
+        _ => None,
+    }
+}
+
+/// Progress line on stderr.
+pub fn progress(msg: &str) {
+    eprintln!("[tables] {msg}");
+}

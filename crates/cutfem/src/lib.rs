@@ -6,8 +6,10 @@
 
 pub mod cutcell;
 pub mod error;
+pub mod fem;
 pub mod mesh;
 pub mod render;
+pub mod scene;
 pub mod sdf;
 pub mod shapes;
 pub mod surface;

@@ -1,13 +1,46 @@
-//! `softbody`: the command-line face of the project.
+//! `softbody`: the command-line face of the project (`../shared/docs/interface.md`).
 //!
-//! The subcommands of `../shared/docs/interface.md` (simulate, observe, fit, diagnose,
-//! gradcheck, demo) arrive with the cutfem, adjoint and diagnosis issues. Until then this
-//! binary only identifies itself.
+//! Thin by design: parse, call the library, print, draw. Every error becomes one line on
+//! stderr and a non-zero exit code; `--json` prints exactly one JSON object on stdout.
 
-fn main() {
-    println!(
-        "softbody {} — no subcommands yet (the simulation arrives with the cutfem issue).\n\
-         Run `cargo run --release -p bench --bin tables` for the gpumat benchmark tables.",
-        env!("CARGO_PKG_VERSION")
-    );
+mod progress;
+mod simulate;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Physically based reconstruction of elastic soft bodies.
+#[derive(Parser, Debug)]
+#[command(name = "softbody", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Forward simulation: per-frame surface meshes (DIR/frames/NNNN.ply), a picture and a
+    /// JSON summary.
+    Simulate(simulate::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    let result = match cli.command {
+        Command::Simulate(a) => simulate::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", e.replace('\n', " "));
+            ExitCode::FAILURE
+        }
+    }
 }

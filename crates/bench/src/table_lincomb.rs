@@ -1,0 +1,180 @@
+//! Tables B.1 (k = 2, n varies) and B.2 (n = 10^6, k = 1..10): the linear combination
+//! `d = sum_i alpha_i v_i` in f32 with gpumat fused and unfused, Eigen and numpy.
+
+use crate::lincomb::{fused, fused_bytes, unfused, unfused_bytes};
+use crate::problems::{checksum, lincomb_inputs};
+use crate::report::{col, Col, Fmt};
+use crate::timing::measure;
+use crate::{progress, ratio, thesis, Ctx};
+use gpumat::Matrix;
+use serde::Serialize;
+use std::hint::black_box;
+
+/// One row of B.1 or B.2.
+#[derive(Clone, Debug, Serialize)]
+pub struct LincombRow {
+    /// `k=..,n=..`
+    pub case: String,
+    /// vector length
+    pub n: usize,
+    /// number of terms
+    pub k: usize,
+    /// gpumat, one fused `assign`, seconds per run
+    pub gpumat_s: f64,
+    /// gpumat, one pass per term (BLAS-style scal + axpy), seconds per run
+    pub gpumat_unfused_s: f64,
+    /// Eigen expression into a preallocated vector (single-threaded)
+    pub eigen_s: Option<f64>,
+    /// numpy f32, `a0*v0 + a1*v1 + ...` with temporaries
+    pub numpy_f32_s: Option<f64>,
+    /// bytes the fused pass moves: `4 (k + 1) n`
+    pub bytes: usize,
+    /// bytes the unfused passes move: `4 n (3k - 1)`
+    pub unfused_bytes: usize,
+    /// `bytes / gpumat_s`, GB/s
+    pub gpumat_gbs: f64,
+    /// `unfused_bytes / gpumat_unfused_s`, GB/s
+    pub gpumat_unfused_gbs: f64,
+    /// `bytes / eigen_s`, GB/s
+    pub eigen_gbs: Option<f64>,
+    /// `gpumat_gbs / stream_triad_gbs`
+    pub fraction_of_stream: f64,
+    /// `gpumat_unfused_s / gpumat_s`
+    pub fused_speedup: f64,
+    /// `unfused_bytes / bytes`: the speedup fusion gives when every pass streams from DRAM
+    /// (less when the destination stays in cache between the unfused passes)
+    pub traffic_ratio: f64,
+    /// `eigen_s / gpumat_s` (> 1: gpumat faster)
+    pub speedup_vs_eigen: Option<f64>,
+    /// `numpy_f32_s / gpumat_s`
+    pub speedup_vs_numpy: Option<f64>,
+    /// fused, unfused and the peers' results agree (checksums within 1e-4 of sum |d|)
+    pub results_agree: bool,
+    /// thesis, cuBLAS on a GTX 1060, ms
+    pub thesis_cublas_ms: Option<f64>,
+    /// thesis, cuMat on a GTX 1060, ms
+    pub thesis_cumat_ms: Option<f64>,
+    /// thesis, Eigen on an i7-6700, ms
+    pub thesis_eigen_ms: Option<f64>,
+    /// thesis, numpy on an i7-6700, ms
+    pub thesis_numpy_ms: Option<f64>,
+}
+
+/// Measures one case.
+pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64, f64)>) -> LincombRow {
+    progress(&format!("lincomb n={n} k={k}"));
+    let p = ctx.policy;
+    let (vs, alphas) = lincomb_inputs(n, k);
+    let mut d = Matrix::<f32>::zeros(n, 1, 1);
+    let mf = measure(&p, || {
+        fused(black_box(&mut d), black_box(&vs), black_box(&alphas));
+    });
+    let fused_sum = checksum(d.as_slice());
+    let scale: f64 = d
+        .as_slice()
+        .iter()
+        .map(|&x| x.abs() as f64)
+        .sum::<f64>()
+        .max(1e-30);
+    let mut du = Matrix::<f32>::zeros(n, 1, 1);
+    let mu = measure(&p, || {
+        unfused(black_box(&mut du), black_box(&vs), black_box(&alphas));
+    });
+    let agree = |s: Option<f64>| s.map_or(true, |s| (s - fused_sum).abs() <= 1e-4 * scale);
+    let mut ok = agree(Some(checksum(du.as_slice())));
+    drop((vs, d, du));
+
+    let case = vec![n.to_string(), k.to_string()];
+    let eigen = match ctx.peers.eigen.as_ref().map(|e| e.run("lincomb", &case, &p)) {
+        Some(r) => ctx.peers.take(r),
+        None => None,
+    };
+    let numpy = match ctx.peers.numpy.as_ref().map(|np| np.lincomb(n, k, &p)) {
+        Some(r) => ctx.peers.take(r),
+        None => None,
+    };
+    for (name, out) in [("eigen", &eigen), ("numpy", &numpy)] {
+        if let Some(o) = out {
+            if !agree(o.f64("checksum")) {
+                ok = false;
+                ctx.peers.notes.push(format!(
+                    "lincomb n={n} k={k}: {name} checksum {:?} differs from gpumat's {fused_sum}",
+                    o.f64("checksum")
+                ));
+            }
+        }
+    }
+    let eigen_s = eigen.and_then(|o| o.f64("time_s"));
+    let numpy_s = numpy.and_then(|o| o.f64("time_s"));
+    let bytes = fused_bytes(n, k);
+    let ubytes = unfused_bytes(n, k);
+    let gbs = bytes as f64 / mf.seconds / 1e9;
+    LincombRow {
+        case: format!("k={k},n={n}"),
+        n,
+        k,
+        gpumat_s: mf.seconds,
+        gpumat_unfused_s: mu.seconds,
+        eigen_s,
+        numpy_f32_s: numpy_s,
+        bytes,
+        unfused_bytes: ubytes,
+        gpumat_gbs: gbs,
+        gpumat_unfused_gbs: ubytes as f64 / mu.seconds / 1e9,
+        eigen_gbs: eigen_s.map(|t| bytes as f64 / t / 1e9),
+        fraction_of_stream: gbs / ctx.stream_gbs,
+        fused_speedup: mu.seconds / mf.seconds,
+        traffic_ratio: ubytes as f64 / bytes as f64,
+        speedup_vs_eigen: ratio(eigen_s, Some(mf.seconds)),
+        speedup_vs_numpy: ratio(numpy_s, Some(mf.seconds)),
+        results_agree: ok,
+        thesis_cublas_ms: th.map(|t| t.0),
+        thesis_cumat_ms: th.map(|t| t.1),
+        thesis_eigen_ms: th.map(|t| t.2),
+        thesis_numpy_ms: th.map(|t| t.3),
+    }
+}
+
+/// The vector lengths of B.1.
+pub fn b1_sizes(quick: bool) -> Vec<usize> {
+    let mut v = vec![100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000];
+    if !quick {
+        v.push(50_000_000);
+    }
+    v
+}
+
+/// Table B.1: k = 2, n from 1e2 to 5e7 (quick: 1e7).
+pub fn table_b1(ctx: &mut Ctx) -> Vec<LincombRow> {
+    b1_sizes(ctx.quick)
+        .into_iter()
+        .map(|n| lincomb_row(ctx, n, 2, thesis::b1(n)))
+        .collect()
+}
+
+/// Table B.2: n = 1e6, k = 1..10.
+pub fn table_b2(ctx: &mut Ctx) -> Vec<LincombRow> {
+    (1..=10)
+        .map(|k| lincomb_row(ctx, 1_000_000, k, thesis::b2(k)))
+        .collect()
+}
+
+/// Markdown columns of B.1/B.2 (`first` is the varying parameter).
+pub fn columns(first: Col) -> Vec<Col> {
+    vec![
+        first,
+        col("gpumat ms", "gpumat_s", Fmt::SecondsAsMs),
+        col("unfused ms", "gpumat_unfused_s", Fmt::SecondsAsMs),
+        col("Eigen ms", "eigen_s", Fmt::SecondsAsMs),
+        col("numpy f32 ms", "numpy_f32_s", Fmt::SecondsAsMs),
+        col("gpumat GB/s", "gpumat_gbs", Fmt::Gbs),
+        col("of STREAM", "fraction_of_stream", Fmt::Percent),
+        col("fused speedup", "fused_speedup", Fmt::Ratio),
+        col("traffic ratio", "traffic_ratio", Fmt::Ratio),
+        col("vs Eigen", "speedup_vs_eigen", Fmt::Ratio),
+        col("thesis cuBLAS ms", "thesis_cublas_ms", Fmt::Ms),
+        col("thesis cuMat ms", "thesis_cumat_ms", Fmt::Ms),
+        col("thesis Eigen ms", "thesis_eigen_ms", Fmt::Ms),
+        col("thesis numpy ms", "thesis_numpy_ms", Fmt::Ms),
+    ]
+}

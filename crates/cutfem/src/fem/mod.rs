@@ -1,0 +1,16 @@
+//! The finite-element core: grid, element, assembly, contact, time integration.
+
+pub mod advect;
+pub mod assembly;
+pub mod collision;
+pub mod element;
+pub mod grid;
+pub mod model;
+pub mod sim;
+pub mod tet;
+
+pub use assembly::{Assembler, Material};
+pub use collision::Ground;
+pub use grid::{Cell, Grid};
+pub use model::{Aabb, Model};
+pub use sim::{Simulation, SolverSettings, StepInfo};

@@ -1,0 +1,154 @@
+//! The physical model of a simulation: material, damping, forces, boundaries, time stepping.
+
+use super::collision::Ground;
+use crate::error::Error;
+use gpumat::Vec3;
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    /// lower corner
+    pub min: [f64; 3],
+    /// upper corner
+    pub max: [f64; 3],
+}
+
+impl Aabb {
+    /// True when `p` lies inside (closed box).
+    pub fn contains(&self, p: Vec3<f64>) -> bool {
+        let p = p.to_array();
+        (0..3).all(|d| p[d] >= self.min[d] && p[d] <= self.max[d])
+    }
+}
+
+/// Everything the forward model needs besides the body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Model {
+    /// Young's modulus `E`
+    pub young: f64,
+    /// Poisson ratio `nu` in (0, 0.5)
+    pub poisson: f64,
+    /// mass density
+    pub density: f64,
+    /// Rayleigh mass damping `alpha_1` (D = alpha_1 M + alpha_2 K)
+    pub damping_mass: f64,
+    /// Rayleigh stiffness damping `alpha_2`
+    pub damping_stiffness: f64,
+    /// gravitational acceleration
+    pub gravity: Vec3<f64>,
+    /// ground contact, if any
+    pub ground: Option<Ground>,
+    /// corotated elasticity (sec. 2.7, 4.4.1.2)
+    pub corotation: bool,
+    /// regions held at zero displacement (Nitsche)
+    pub dirichlet: Vec<Aabb>,
+    /// Nitsche penalty `eta` (thesis: 1e8)
+    pub nitsche_eta: f64,
+    /// initial linear velocity
+    pub initial_velocity: Vec3<f64>,
+    /// initial angular velocity (about the center of mass)
+    pub initial_angular_velocity: Vec3<f64>,
+    /// time step
+    pub dt: f64,
+    /// Newmark-1 theta in [0.5, 1)
+    pub theta: f64,
+}
+
+impl Default for Model {
+    fn default() -> Self {
+        Self {
+            young: 2000.0,
+            poisson: 0.3,
+            density: 1.0,
+            damping_mass: 0.0,
+            damping_stiffness: 0.0,
+            gravity: Vec3::default(),
+            ground: None,
+            corotation: true,
+            dirichlet: Vec::new(),
+            nitsche_eta: 1e8,
+            initial_velocity: Vec3::default(),
+            initial_angular_velocity: Vec3::default(),
+            dt: 0.01,
+            theta: 0.6,
+        }
+    }
+}
+
+impl Model {
+    /// Checks the parameter ranges; the error names the scene key.
+    pub fn validate(&self) -> Result<(), Error> {
+        let bad = |key: &str, why: String| Err(Error::Invalid(format!("{key}: {why}")));
+        if !(self.young > 0.0 && self.young.is_finite()) {
+            return bad(
+                "material.young",
+                format!("Young's modulus must be positive, got {}", self.young),
+            );
+        }
+        if !(self.poisson > 0.0 && self.poisson < 0.5) {
+            return bad(
+                "material.poisson",
+                format!("Poisson ratio must lie in (0, 0.5), got {}", self.poisson),
+            );
+        }
+        if !(self.density > 0.0 && self.density.is_finite()) {
+            return bad(
+                "material.density",
+                format!("density must be positive, got {}", self.density),
+            );
+        }
+        if !(self.damping_mass >= 0.0 && self.damping_mass.is_finite()) {
+            return bad("damping.mass", format!("must be >= 0, got {}", self.damping_mass));
+        }
+        if !(self.damping_stiffness >= 0.0 && self.damping_stiffness.is_finite()) {
+            return bad(
+                "damping.stiffness",
+                format!("must be >= 0, got {}", self.damping_stiffness),
+            );
+        }
+        if !(self.dt > 0.0 && self.dt.is_finite()) {
+            return bad("time.dt", format!("time step must be positive, got {}", self.dt));
+        }
+        if !(self.theta >= 0.5 && self.theta < 1.0) {
+            return bad(
+                "time.theta",
+                format!("Newmark theta must lie in [0.5, 1), got {}", self.theta),
+            );
+        }
+        if !(self.nitsche_eta > 0.0 && self.nitsche_eta.is_finite()) {
+            return bad(
+                "numerics.nitsche_eta",
+                format!("must be positive, got {}", self.nitsche_eta),
+            );
+        }
+        if !self.gravity.to_array().iter().all(|g| g.is_finite()) {
+            return bad("gravity.acceleration", "must be finite".into());
+        }
+        if let Some(g) = &self.ground {
+            let n = g.normal.norm();
+            if !(n > 0.0 && n.is_finite()) {
+                return bad("ground.normal", "must be a non-zero vector".into());
+            }
+            if !(g.stiffness > 0.0 && g.stiffness.is_finite()) {
+                return bad(
+                    "ground.stiffness",
+                    format!("must be positive, got {}", g.stiffness),
+                );
+            }
+            if !(g.softness > 0.0 && g.softness.is_finite()) {
+                return bad("ground.softness", format!("must be positive, got {}", g.softness));
+            }
+        }
+        for (i, b) in self.dirichlet.iter().enumerate() {
+            if !(0..3).all(|d| b.min[d] <= b.max[d]) {
+                return bad(&format!("dirichlet[{i}]"), "min must not exceed max".into());
+            }
+        }
+        Ok(())
+    }
+
+    /// Lame coefficients `(lambda, mu)`.
+    pub fn lame(&self) -> (f64, f64) {
+        super::element::lame(self.young, self.poisson)
+    }
+}

@@ -1,0 +1,414 @@
+//! The forward simulation: one function, [`Simulation::step`], shows the stage order.
+//!
+//! Per step (thesis sec. 4.4): rotations `R_e` from the current displacement (4.4.8-4.4.9),
+//! stiffness values and corotation forces (4.4.1), ground forces (2.8), then Newmark-1 with
+//! Rayleigh damping `D = alpha_1 M + alpha_2 K` (2.6.1-2.6.3):
+//!
+//! `A = (1/(theta dt) + alpha_1) M + (alpha_2 + theta dt) K`,
+//! `b = ((1/(theta dt) + alpha_1) M + (alpha_2 - (1-theta) dt) K) u + M v / theta + dt f`,
+//! `v' = (u' - u)/(theta dt) - (1-theta)/theta v`.
+//!
+//! (The thesis prints `+ (1-theta) dt K` in `b`; deriving the theta-scheme for
+//! `M v' + D v + K u = f`, `u' = v` gives the minus sign used here.) `A` and `b` are each one
+//! fused gpumat expression; `A u' = b` is solved by Jacobi-preconditioned CG warm-started at
+//! `u + dt v` (4.4.18), falling back to a sparse Cholesky factorization when CG fails.
+
+use super::assembly::{Assembler, ElementBlocks, Material};
+use super::collision::{add_ground_forces, crossings, Crossing};
+use super::element::POLAR_ITERATIONS;
+use super::grid::Grid;
+use super::model::Model;
+use crate::error::Error;
+use gpumat::{cg, BlockJacobi, CgParams, Mat3, Matrix, SparseCholesky, SparseMatrix, Vec3};
+use std::time::Instant;
+
+/// Linear-solver settings of a simulation.
+#[derive(Clone, Copy, Debug)]
+pub struct SolverSettings {
+    /// CG parameters
+    pub cg: CgParams<f64>,
+    /// fall back to a direct solve when CG fails (else the error is returned)
+    pub fallback: bool,
+    /// solve directly (sparse Cholesky) instead of CG
+    pub direct: bool,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        Self {
+            cg: CgParams {
+                max_iterations: 2000,
+                tolerance: 1e-8,
+                absolute_tolerance: 0.0,
+            },
+            fallback: true,
+            direct: false,
+        }
+    }
+}
+
+/// What one step did.
+#[derive(Clone, Debug, Default)]
+pub struct StepInfo {
+    /// CG iterations
+    pub iterations: usize,
+    /// final relative CG residual
+    pub residual: f64,
+    /// true when CG failed and the direct solver was used
+    pub fallback: bool,
+    /// crossings in contact with the ground
+    pub contacts: usize,
+    /// seconds in assembly (rotations, stiffness, corotation forces, A and b)
+    pub assembly_s: f64,
+    /// seconds in collision forces
+    pub collision_s: f64,
+    /// seconds in the linear solve
+    pub solve_s: f64,
+}
+
+/// A running simulation: the grid, its fixed data, and the state `(u, v)`.
+#[derive(Debug)]
+pub struct Simulation {
+    /// the grid
+    pub grid: Grid,
+    /// the model
+    pub model: Model,
+    /// pattern and maps
+    pub assembler: Assembler,
+    /// lumped mass per dof
+    pub mass: Matrix<f64>,
+    /// cells with Nitsche terms
+    pub dirichlet: Vec<bool>,
+    /// surface crossings of grid edges
+    pub crossings: Vec<Crossing>,
+    /// displacement
+    pub u: Matrix<Vec3<f64>>,
+    /// velocity
+    pub v: Matrix<Vec3<f64>>,
+    /// steps done
+    pub steps: usize,
+    /// solver settings
+    pub solver: SolverSettings,
+    k: SparseMatrix<Mat3<f64>>,
+    a: SparseMatrix<Mat3<f64>>,
+    blocks: Option<ElementBlocks>,
+    f: Matrix<Vec3<f64>>,
+    b: Matrix<Vec3<f64>>,
+}
+
+impl Simulation {
+    /// Sets up the simulation of `grid` under `model` at rest in the reference configuration
+    /// with the model's initial velocity.
+    pub fn new(grid: Grid, model: Model) -> Result<Self, Error> {
+        model.validate()?;
+        let assembler = Assembler::new(&grid);
+        let mass = assembler.lumped_mass(&grid, model.density);
+        let dirichlet = dirichlet_cells(&grid, &model)?;
+        let crossings = crossings(&grid);
+        let n = grid.dofs();
+        let k = SparseMatrix::zeros(assembler.pattern().clone(), 1);
+        let a = SparseMatrix::zeros(assembler.pattern().clone(), 1);
+        let mut sim = Self {
+            u: Matrix::zeros(n, 1, 1),
+            v: Matrix::zeros(n, 1, 1),
+            f: Matrix::zeros(n, 1, 1),
+            b: Matrix::zeros(n, 1, 1),
+            grid,
+            model,
+            assembler,
+            mass,
+            dirichlet,
+            crossings,
+            steps: 0,
+            solver: SolverSettings::default(),
+            k,
+            a,
+            blocks: None,
+        };
+        sim.v = sim.initial_velocity();
+        Ok(sim)
+    }
+
+    /// The initial velocity field `v0 + omega x (x - c)` with `c` the center of mass.
+    pub fn initial_velocity(&self) -> Matrix<Vec3<f64>> {
+        let m = self.mass.as_slice();
+        let total: f64 = m.iter().sum();
+        let mut c = Vec3::default();
+        for (p, &mi) in self.grid.positions.iter().zip(m) {
+            c = c + *p * mi;
+        }
+        let c = c * (1.0 / total);
+        let (v0, w) = (self.model.initial_velocity, self.model.initial_angular_velocity);
+        Matrix::from_fn(self.grid.dofs(), 1, 1, |i, _, _| {
+            v0 + w.cross(self.grid.positions[i] - c)
+        })
+    }
+
+    /// Total mass.
+    pub fn total_mass(&self) -> f64 {
+        self.mass.as_slice().iter().sum()
+    }
+
+    fn material(&self) -> Material {
+        let (lambda, mu) = self.model.lame();
+        Material {
+            lambda,
+            mu,
+            eta: self.model.nitsche_eta,
+        }
+    }
+
+    /// The element blocks for the current material (rebuilt when `E` or `nu` changed).
+    fn blocks(&mut self) -> ElementBlocks {
+        let m = self.material();
+        match self.blocks.take() {
+            Some(b) if b.lambda == m.lambda && b.mu == m.mu => b,
+            _ => self.assembler.element_blocks(&self.grid, &m),
+        }
+    }
+
+    /// Stiffness values and elastic forces for the current state: `K` (rotated when
+    /// corotation is on, with Nitsche terms) into `self.k`, body + corotation forces into
+    /// `self.f`.
+    fn assemble(&mut self) {
+        let m = self.material();
+        let blocks = self.blocks();
+        let rot = self
+            .model
+            .corotation
+            .then(|| self.assembler.rotations(&self.grid, &self.u, POLAR_ITERATIONS));
+        self.assembler.assemble_stiffness(
+            &self.grid,
+            &m,
+            &blocks,
+            rot.as_deref(),
+            &self.dirichlet,
+            &mut self.k,
+        );
+        let g = self.model.gravity;
+        self.f.assign(self.mass.ex().cwise_mul(gpumat::scalar(g)));
+        if let Some(r) = &rot {
+            self.assembler
+                .add_corotation_forces(&self.grid, &blocks, r, &mut self.f);
+        }
+        self.blocks = Some(blocks);
+    }
+
+    /// Advances one time step.
+    pub fn step(&mut self) -> Result<StepInfo, Error> {
+        let mut info = StepInfo::default();
+        let (dt, theta) = (self.model.dt, self.model.theta);
+        let (a1, a2) = (self.model.damping_mass, self.model.damping_stiffness);
+        let t0 = Instant::now();
+        self.assemble();
+        info.assembly_s += t0.elapsed().as_secs_f64();
+
+        let t1 = Instant::now();
+        let mut contact = Vec::new();
+        if let Some(ground) = &self.model.ground {
+            info.contacts = add_ground_forces(
+                &self.grid,
+                &self.crossings,
+                ground,
+                &self.u,
+                &self.v,
+                dt,
+                theta,
+                &mut self.f,
+                &mut contact,
+            );
+        }
+        info.collision_s = t1.elapsed().as_secs_f64();
+
+        let t2 = Instant::now();
+        let cm = 1.0 / (theta * dt) + a1;
+        self.a.assign(
+            (self.mass.ex().cast::<Mat3<f64>>().as_diagonal() * cm + self.k.ex() * (a2 + theta * dt))
+                .sparse_view(self.assembler.pattern()),
+        );
+        if let Some(ground) = &self.model.ground {
+            self.add_contact_stiffness(&contact, ground.normal, theta * dt);
+        }
+        self.b.assign(
+            self.mass.ex().cwise_mul(self.u.ex()) * cm
+                + (&self.k * &self.u) * (a2 - (1.0 - theta) * dt)
+                + self.mass.ex().cwise_mul(self.v.ex()) * (1.0 / theta)
+                + self.f.ex() * dt,
+        );
+        info.assembly_s += t2.elapsed().as_secs_f64();
+
+        let t3 = Instant::now();
+        let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);
+        let (iterations, residual, fallback) = solve(&self.a, &self.b, &mut x, &self.solver)?;
+        info.iterations = iterations;
+        info.residual = residual;
+        info.fallback = fallback;
+        info.solve_s = t3.elapsed().as_secs_f64();
+
+        // v' = (u' - u)/(theta dt) - (1-theta)/theta v, then u = u'
+        let c = 1.0 / (theta * dt);
+        self.v
+            .assign_with(|v| (x.ex() - self.u.ex()) * c - v * ((1.0 - theta) / theta));
+        self.u = x;
+        self.steps += 1;
+        Ok(info)
+    }
+
+    /// Adds `scale * K_c` (the linearized contact stiffness of the crossings in `contact`, as
+    /// `(crossing, k softmin'(d))`) to the Newmark matrix, in the crossings' fixed order.
+    fn add_contact_stiffness(&mut self, contact: &[(Crossing, f64)], n: Vec3<f64>, scale: f64) {
+        let nn = n.outer(n);
+        let pattern = self.assembler.pattern().clone();
+        let values = self.a.batch_values_mut(0);
+        for &(c, slope) in contact {
+            let w = [(c.a, 1.0 - c.t), (c.b, c.t)];
+            for &(p, wp) in &w {
+                for &(q, wq) in &w {
+                    let k = pattern
+                        .find(p as usize, q as usize)
+                        .expect("crossing corners share a cell");
+                    values[k] = values[k] + nn * (scale * slope * wp * wq);
+                }
+            }
+        }
+    }
+
+    /// The static equilibrium `K u = f` of plain linear elasticity (no corotation, no ground,
+    /// no inertia) under the body forces, with Nitsche Dirichlet terms.
+    pub fn solve_static(&mut self) -> Result<StepInfo, Error> {
+        let m = self.material();
+        let blocks = self.blocks();
+        self.assembler
+            .assemble_stiffness(&self.grid, &m, &blocks, None, &self.dirichlet, &mut self.k);
+        self.blocks = Some(blocks);
+        let g = self.model.gravity;
+        self.f.assign(self.mass.ex().cwise_mul(gpumat::scalar(g)));
+        let mut x = Matrix::zeros(self.grid.dofs(), 1, 1);
+        let t = Instant::now();
+        let (iterations, residual, fallback) = solve(&self.k, &self.f, &mut x, &self.solver)?;
+        self.u = x;
+        Ok(StepInfo {
+            iterations,
+            residual,
+            fallback,
+            solve_s: t.elapsed().as_secs_f64(),
+            ..Default::default()
+        })
+    }
+
+    /// The elastic force `-K u` (corotated when the model says so, with the corotation force
+    /// `-R K (R^T x - x)`), without body or contact forces. Assembles the stiffness.
+    pub fn elastic_force(&mut self) -> Matrix<Vec3<f64>> {
+        let m = self.material();
+        let blocks = self.blocks();
+        let rot = self
+            .model
+            .corotation
+            .then(|| self.assembler.rotations(&self.grid, &self.u, POLAR_ITERATIONS));
+        self.assembler.assemble_stiffness(
+            &self.grid,
+            &m,
+            &blocks,
+            rot.as_deref(),
+            &self.dirichlet,
+            &mut self.k,
+        );
+        let mut f = Matrix::eval(-(&self.k * &self.u));
+        if let Some(r) = &rot {
+            self.assembler
+                .add_corotation_forces(&self.grid, &blocks, r, &mut f);
+        }
+        self.blocks = Some(blocks);
+        f
+    }
+
+    /// The stiffness matrix of the last assembly.
+    pub fn stiffness(&self) -> &SparseMatrix<Mat3<f64>> {
+        &self.k
+    }
+    /// The Newmark matrix `A` of the last step.
+    pub fn newmark_matrix(&self) -> &SparseMatrix<Mat3<f64>> {
+        &self.a
+    }
+
+    /// Kinetic energy `1/2 sum m v^2`.
+    pub fn kinetic_energy(&self) -> f64 {
+        0.5 * self.mass.ex().cwise_mul(self.v.ex().cwise_squared_norm()).sum()
+    }
+    /// Elastic energy `1/2 u^T K u` of the last assembled (unrotated, or rotated) stiffness.
+    pub fn elastic_energy(&self) -> f64 {
+        0.5 * self.u.ex().dot(&self.k * &self.u)
+    }
+    /// Gravitational potential `-sum m g . u` (relative to the reference configuration).
+    pub fn gravity_energy(&self) -> f64 {
+        let g = self.model.gravity;
+        -self
+            .mass
+            .ex()
+            .cwise_mul(self.u.ex().cwise_dot(gpumat::scalar(g)))
+            .sum()
+    }
+    /// The largest displacement norm.
+    pub fn max_displacement(&self) -> f64 {
+        self.u.ex().cwise_squared_norm().max().sqrt()
+    }
+}
+
+/// Solves `A x = b` by block-Jacobi CG from the given `x`, falling back to Cholesky.
+/// Returns `(iterations, relative residual, fallback used)`.
+pub fn solve(
+    a: &SparseMatrix<Mat3<f64>>,
+    b: &Matrix<Vec3<f64>>,
+    x: &mut Matrix<Vec3<f64>>,
+    settings: &SolverSettings,
+) -> Result<(usize, f64, bool), Error> {
+    let direct = |x: &mut Matrix<Vec3<f64>>| -> Result<f64, Error> {
+        let chol = SparseCholesky::new(a)?;
+        *x = chol.solve(b);
+        let mut r = Matrix::zeros_shape(b.shape());
+        r.assign(b - a * &*x);
+        Ok(r.ex().norm() / b.ex().norm().max(f64::MIN_POSITIVE))
+    };
+    if settings.direct {
+        return Ok((0, direct(x)?, false));
+    }
+    let pre = BlockJacobi::new(a)?;
+    match cg(a, b, x, &pre, &settings.cg) {
+        Ok(info) => Ok((info.max_iterations(), info.max_residual(), false)),
+        Err(e) if settings.fallback => {
+            let iterations = match &e {
+                gpumat::CgError::NoConvergence { info } => info.max_iterations(),
+                _ => settings.cg.max_iterations,
+            };
+            Ok((iterations, direct(x)?, true))
+        }
+        Err(e) => Err(Error::Invalid(format!("linear solve: {e}"))),
+    }
+}
+
+/// Cells with Nitsche boundary terms: cut cells whose center lies in a Dirichlet box. Errors
+/// when a box holds no part of the body's surface.
+pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<bool>, Error> {
+    let h = grid.h();
+    let mut marks = vec![false; grid.cells.len()];
+    for (bi, bx) in model.dirichlet.iter().enumerate() {
+        let mut any = false;
+        for (e, c) in grid.cells.iter().enumerate() {
+            if c.integrals.area <= 0.0 {
+                continue;
+            }
+            let center = grid.cell_origin(c) + Vec3::splat(0.5 * h);
+            if bx.contains(center) {
+                marks[e] = true;
+                any = true;
+            }
+        }
+        if !any {
+            return Err(Error::Invalid(format!(
+                "dirichlet[{bi}]: the box {:?}..{:?} holds no part of the body's surface (no material is held)",
+                bx.min, bx.max
+            )));
+        }
+    }
+    Ok(marks)
+}

@@ -1,0 +1,468 @@
+//! Pictures of triangle meshes: a small CPU rasterizer writing PNG files (the counterpart of
+//! the thesis' OpenGL marching-cubes rendering, sec. 4.5.1).
+//!
+//! # What is implemented
+//!
+//! * [`Camera`]: a pinhole camera (eye, target, up, vertical field of view), with
+//!   [`Camera::orbit`] and [`Camera::framing`] to place it around a body.
+//! * [`render_mesh`] / [`render`]: z-buffered rasterization with perspective-correct
+//!   interpolation, smooth (area-weighted vertex normals) or flat Lambert shading plus
+//!   ambient light from a headlight just above and left of the eye, two-sided (back faces are
+//!   lit like front faces), optional supersampling, an optional light checkerboard ground
+//!   plane `y = height` ([`Ground`]) and per-mesh uniform colour or per-vertex scalar colouring
+//!   through the [`viridis`] colour map ([`Coloring`]).
+//! * [`Image`]: RGB images with PNG output (`png` crate), [`Image::tile`] for several frames
+//!   side by side, and a built-in 5x7 bitmap font ([`Image::draw_text`], [`Image::label`]).
+//!
+//! Triangles with a vertex behind the camera's near plane are skipped (no clipping), so the
+//! camera should look at the meshes from outside.
+
+mod font;
+mod image;
+
+pub use font::{glyph, GLYPH_HEIGHT, GLYPH_WIDTH};
+pub use image::{Image, BORDER_COLOR};
+
+use crate::TriMesh;
+
+/// Distance of the near plane from the eye, relative to the eye-target distance.
+const NEAR: f64 = 1e-3;
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let n = dot(a, a).sqrt();
+    if n > 0.0 {
+        a.map(|x| x / n)
+    } else {
+        a
+    }
+}
+
+/// A pinhole camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// position of the eye
+    pub eye: [f64; 3],
+    /// the point looked at (projected to the image centre)
+    pub target: [f64; 3],
+    /// the world direction that appears upward in the image (need not be orthogonal to the
+    /// view direction, must not be parallel to it)
+    pub up: [f64; 3],
+    /// vertical field of view in degrees
+    pub fov_y_degrees: f64,
+}
+
+/// The camera's orthonormal frame.
+#[derive(Clone, Copy, Debug)]
+struct Frame {
+    eye: [f64; 3],
+    right: [f64; 3],
+    up: [f64; 3],
+    forward: [f64; 3],
+    /// focal length in pixels
+    focal: f64,
+    near: f64,
+    cx: f64,
+    cy: f64,
+}
+
+impl Camera {
+    /// A camera with 40 degree vertical field of view at distance `radius` from `center`,
+    /// looking at it, y up: `theta` is the azimuth in radians about +y (0 = on the +z side,
+    /// pi/2 = on the +x side) and `phi` the elevation in radians above the xz-plane
+    /// (|phi| < pi/2).
+    pub fn orbit(center: [f64; 3], radius: f64, theta: f64, phi: f64) -> Self {
+        let dir = [phi.cos() * theta.sin(), phi.sin(), phi.cos() * theta.cos()];
+        Camera {
+            eye: [0, 1, 2].map(|d| center[d] + radius * dir[d]),
+            target: center,
+            up: [0.0, 1.0, 0.0],
+            fov_y_degrees: 40.0,
+        }
+    }
+
+    /// An [`orbit`](Camera::orbit) camera around the box `[min, max]` at the distance where the
+    /// box's bounding sphere just fits the vertical field of view (with a 5 % margin).
+    pub fn framing(min: [f64; 3], max: [f64; 3], theta: f64, phi: f64) -> Self {
+        let center = [0, 1, 2].map(|d| 0.5 * (min[d] + max[d]));
+        let r = 0.5 * dot(sub(max, min), sub(max, min)).sqrt();
+        let half = 20f64.to_radians();
+        let dist = (1.05 * r / half.sin()).max(1e-9);
+        Camera::orbit(center, dist, theta, phi)
+    }
+
+    fn frame(&self, width: usize, height: usize) -> Frame {
+        let view = sub(self.target, self.eye);
+        let forward = normalize(view);
+        let mut right = normalize(cross(forward, self.up));
+        if dot(right, right) == 0.0 {
+            // up parallel to the view direction: pick any perpendicular
+            let alt = if forward[0].abs() < 0.9 {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.0, 0.0, 1.0]
+            };
+            right = normalize(cross(forward, alt));
+        }
+        let up = cross(right, forward);
+        let half = (0.5 * self.fov_y_degrees.clamp(1.0, 179.0)).to_radians();
+        Frame {
+            eye: self.eye,
+            right,
+            up,
+            forward,
+            focal: 0.5 * height as f64 / half.tan(),
+            near: NEAR * dot(view, view).sqrt().max(1e-12),
+            cx: 0.5 * width as f64,
+            cy: 0.5 * height as f64,
+        }
+    }
+
+    /// Projects world point `p` into a `width` x `height` image: `[x, y, depth]` with pixel
+    /// coordinates (x to the right, y downward, pixel centres at half-integers) and the depth
+    /// along the view direction; `None` when `p` is not in front of the near plane.
+    pub fn project(&self, p: [f64; 3], width: usize, height: usize) -> Option<[f64; 3]> {
+        self.frame(width, height).project(p)
+    }
+}
+
+impl Frame {
+    fn project(&self, p: [f64; 3]) -> Option<[f64; 3]> {
+        let d = sub(p, self.eye);
+        let z = dot(d, self.forward);
+        if z <= self.near {
+            return None;
+        }
+        let x = dot(d, self.right);
+        let y = dot(d, self.up);
+        Some([self.cx + self.focal * x / z, self.cy - self.focal * y / z, z])
+    }
+
+    /// The (unnormalized, unit depth) direction of the ray through pixel position `(px, py)`.
+    fn ray(&self, px: f64, py: f64) -> [f64; 3] {
+        let (x, y) = ((px - self.cx) / self.focal, (self.cy - py) / self.focal);
+        [0, 1, 2].map(|d| self.forward[d] + x * self.right[d] + y * self.up[d])
+    }
+}
+
+/// How a mesh is coloured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Coloring<'a> {
+    /// one base colour for the whole mesh
+    Uniform([u8; 3]),
+    /// one scalar per vertex mapped through [`viridis`]; `range` is the `(low, high)` mapped to
+    /// the ends of the map (values outside are clamped), by default the finite values'
+    /// min and max. Non-finite values are drawn grey.
+    Scalar {
+        /// per-vertex values (`len` = vertex count)
+        values: &'a [f64],
+        /// the values mapped to 0 and 1
+        range: Option<(f64, f64)>,
+    },
+}
+
+/// One mesh to draw and how to colour it.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderItem<'a> {
+    /// the mesh
+    pub mesh: &'a TriMesh,
+    /// its colouring
+    pub coloring: Coloring<'a>,
+}
+
+/// A checkerboard ground plane `y = height`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ground {
+    /// height of the plane
+    pub height: f64,
+    /// edge length of a checker square (world units)
+    pub cell: f64,
+    /// horizontal distance from the camera target beyond which the plane fades into the
+    /// background (world units)
+    pub extent: f64,
+    /// the two checker colours
+    pub colors: [[u8; 3]; 2],
+}
+
+impl Default for Ground {
+    fn default() -> Self {
+        Ground {
+            height: 0.0,
+            cell: 0.5,
+            extent: 5.0,
+            colors: [[236, 236, 236], [206, 206, 206]],
+        }
+    }
+}
+
+/// Options of [`render`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// background colour
+    pub background: [u8; 3],
+    /// ambient light fraction in `[0, 1]`; the rest is Lambert from the headlight
+    pub ambient: f64,
+    /// interpolate vertex normals (true) or shade each triangle flat (false)
+    pub smooth: bool,
+    /// a ground plane, when wanted
+    pub ground: Option<Ground>,
+    /// supersampling factor per axis (1 = none; 2..4 smooth the edges)
+    pub supersample: usize,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            background: [255, 255, 255],
+            ambient: 0.25,
+            smooth: true,
+            ground: None,
+            supersample: 1,
+        }
+    }
+}
+
+/// A viridis-like colour map: `t` in `[0, 1]` (clamped; NaN gives grey) from dark purple
+/// through blue and green to yellow, piecewise linear through nine samples of matplotlib's
+/// viridis.
+pub fn viridis(t: f64) -> [u8; 3] {
+    const MAP: [[f64; 3]; 9] = [
+        [68.0, 1.0, 84.0],
+        [71.0, 44.0, 122.0],
+        [59.0, 81.0, 139.0],
+        [44.0, 113.0, 142.0],
+        [33.0, 144.0, 141.0],
+        [39.0, 173.0, 129.0],
+        [92.0, 200.0, 99.0],
+        [170.0, 220.0, 50.0],
+        [253.0, 231.0, 37.0],
+    ];
+    if t.is_nan() {
+        return [128, 128, 128];
+    }
+    let s = t.clamp(0.0, 1.0) * 8.0;
+    let i = (s.floor() as usize).min(7);
+    let f = s - i as f64;
+    [0, 1, 2].map(|d| (MAP[i][d] + f * (MAP[i + 1][d] - MAP[i][d])).round() as u8)
+}
+
+/// Renders `meshes`, each in one base colour, with the default [`RenderOptions`] (white
+/// background, smooth shading, no ground, no supersampling).
+pub fn render_mesh(meshes: &[(&TriMesh, [u8; 3])], camera: &Camera, width: usize, height: usize) -> Image {
+    let items: Vec<RenderItem> = meshes
+        .iter()
+        .map(|&(mesh, c)| RenderItem {
+            mesh,
+            coloring: Coloring::Uniform(c),
+        })
+        .collect();
+    render(&items, camera, width, height, &RenderOptions::default())
+}
+
+/// Per-vertex colour source of a prepared mesh.
+enum VertexColor {
+    Uniform([f64; 3]),
+    /// normalized scalar in [0, 1] or NaN
+    Scalar(Vec<f64>),
+}
+
+/// Area-weighted vertex normals.
+fn vertex_normals(mesh: &TriMesh) -> Vec<[f64; 3]> {
+    let mut n = vec![[0.0; 3]; mesh.vertices.len()];
+    for f in &mesh.faces {
+        let [a, b, c] = f.map(|v| mesh.vertices[v as usize]);
+        let fnrm = cross(sub(b, a), sub(c, a));
+        for &v in f {
+            for d in 0..3 {
+                n[v as usize][d] += fnrm[d];
+            }
+        }
+    }
+    n.into_iter().map(normalize).collect()
+}
+
+/// Renders `items` into a `width` x `height` image seen by `camera`. Faces with out-of-range
+/// vertex indices and scalar colourings of the wrong length are skipped/drawn grey rather
+/// than panicking.
+pub fn render(
+    items: &[RenderItem],
+    camera: &Camera,
+    width: usize,
+    height: usize,
+    options: &RenderOptions,
+) -> Image {
+    let s = options.supersample.clamp(1, 8);
+    let (w, h) = (width * s, height * s);
+    let fr = camera.frame(w, h);
+    let bg = options.background.map(|c| c as f64 / 255.0);
+    let mut color = vec![bg; w * h];
+    let mut depth = vec![f64::INFINITY; w * h];
+    let light = normalize([0, 1, 2].map(|d| -fr.forward[d] + 0.35 * fr.up[d] - 0.25 * fr.right[d]));
+    let ambient = options.ambient.clamp(0.0, 1.0);
+
+    for item in items {
+        let mesh = item.mesh;
+        let nv = mesh.vertices.len();
+        let vcolor = match item.coloring {
+            Coloring::Uniform(c) => VertexColor::Uniform(c.map(|x| x as f64 / 255.0)),
+            Coloring::Scalar { values, range } => {
+                let (lo, hi) = range.unwrap_or_else(|| {
+                    values
+                        .iter()
+                        .filter(|v| v.is_finite())
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                            (lo.min(v), hi.max(v))
+                        })
+                });
+                let span = if hi > lo { hi - lo } else { 1.0 };
+                VertexColor::Scalar(
+                    (0..nv)
+                        .map(|v| match values.get(v) {
+                            Some(&x) if x.is_finite() => ((x - lo) / span).clamp(0.0, 1.0),
+                            _ => f64::NAN,
+                        })
+                        .collect(),
+                )
+            }
+        };
+        let normals = if options.smooth {
+            vertex_normals(mesh)
+        } else {
+            Vec::new()
+        };
+        let proj: Vec<Option<[f64; 3]>> = mesh.vertices.iter().map(|&p| fr.project(p)).collect();
+        for f in &mesh.faces {
+            if f.iter().any(|&v| v as usize >= nv) {
+                continue;
+            }
+            let [i0, i1, i2] = f.map(|v| v as usize);
+            let (Some(p0), Some(p1), Some(p2)) = (proj[i0], proj[i1], proj[i2]) else {
+                continue;
+            };
+            let area = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
+            if area.abs() < 1e-12 {
+                continue;
+            }
+            let face_normal = normalize(cross(
+                sub(mesh.vertices[i1], mesh.vertices[i0]),
+                sub(mesh.vertices[i2], mesh.vertices[i0]),
+            ));
+            let xmin = p0[0].min(p1[0]).min(p2[0]).floor().max(0.0) as usize;
+            let ymin = p0[1].min(p1[1]).min(p2[1]).floor().max(0.0) as usize;
+            let xmax = (p0[0].max(p1[0]).max(p2[0]).ceil().max(0.0) as usize).min(w);
+            let ymax = (p0[1].max(p1[1]).max(p2[1]).ceil().max(0.0) as usize).min(h);
+            let iz = [1.0 / p0[2], 1.0 / p1[2], 1.0 / p2[2]];
+            for y in ymin..ymax {
+                let py = y as f64 + 0.5;
+                for x in xmin..xmax {
+                    let px = x as f64 + 0.5;
+                    // barycentric coordinates in screen space
+                    let l1 = ((px - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (py - p0[1])) / area;
+                    let l2 = ((p1[0] - p0[0]) * (py - p0[1]) - (px - p0[0]) * (p1[1] - p0[1])) / area;
+                    let l0 = 1.0 - l1 - l2;
+                    if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
+                        continue;
+                    }
+                    let inv_z = l0 * iz[0] + l1 * iz[1] + l2 * iz[2];
+                    let z = 1.0 / inv_z;
+                    let pix = x + w * y;
+                    if z >= depth[pix] {
+                        continue;
+                    }
+                    depth[pix] = z;
+                    // perspective-correct weights
+                    let wt = [l0 * iz[0] * z, l1 * iz[1] * z, l2 * iz[2] * z];
+                    let n = if options.smooth {
+                        let ns = [normals[i0], normals[i1], normals[i2]];
+                        normalize([0, 1, 2].map(|d| wt[0] * ns[0][d] + wt[1] * ns[1][d] + wt[2] * ns[2][d]))
+                    } else {
+                        face_normal
+                    };
+                    let shade = ambient + (1.0 - ambient) * dot(n, light).abs();
+                    let base = match &vcolor {
+                        VertexColor::Uniform(c) => *c,
+                        VertexColor::Scalar(t) => {
+                            let tv = wt[0] * t[i0] + wt[1] * t[i1] + wt[2] * t[i2];
+                            viridis(tv).map(|c| c as f64 / 255.0)
+                        }
+                    };
+                    color[pix] = base.map(|c| (c * shade).min(1.0));
+                }
+            }
+        }
+    }
+
+    if let Some(g) = options.ground {
+        let cell = if g.cell > 0.0 { g.cell } else { 1.0 };
+        let extent = if g.extent > 0.0 { g.extent } else { f64::INFINITY };
+        for y in 0..h {
+            for x in 0..w {
+                let dir = fr.ray(x as f64 + 0.5, y as f64 + 0.5);
+                if dir[1].abs() < 1e-12 {
+                    continue;
+                }
+                // dir has unit depth, so the ray parameter is the depth
+                let t = (g.height - fr.eye[1]) / dir[1];
+                let pix = x + w * y;
+                if t <= fr.near || t >= depth[pix] {
+                    continue;
+                }
+                let q = [0, 1, 2].map(|d| fr.eye[d] + t * dir[d]);
+                let checker = ((q[0] / cell).floor() + (q[2] / cell).floor()).rem_euclid(2.0) as usize;
+                let c = g.colors[checker.min(1)].map(|c| c as f64 / 255.0);
+                let r = ((q[0] - camera.target[0]).powi(2) + (q[2] - camera.target[2]).powi(2)).sqrt();
+                let fade = (1.0 - (r / extent).powi(2)).clamp(0.0, 1.0);
+                color[pix] = [0, 1, 2].map(|d| fade * c[d] + (1.0 - fade) * color[pix][d]);
+                depth[pix] = t;
+            }
+        }
+    }
+
+    // downsample to the output size
+    let mut img = Image::new(width, height, options.background);
+    let norm = 1.0 / (s * s) as f64;
+    for y in 0..height {
+        for x in 0..width {
+            let mut acc = [0.0; 3];
+            for sy in 0..s {
+                for sx in 0..s {
+                    let c = color[(x * s + sx) + w * (y * s + sy)];
+                    for d in 0..3 {
+                        acc[d] += c[d];
+                    }
+                }
+            }
+            img.set_pixel(
+                x,
+                y,
+                acc.map(|a| (a * norm * 255.0).round().clamp(0.0, 255.0) as u8),
+            );
+        }
+    }
+    img
+}
+
+/// The axis-aligned bounding box `(min, max)` of all vertices of `meshes`; `None` when they
+/// have no vertices.
+pub fn bounds(meshes: &[&TriMesh]) -> Option<([f64; 3], [f64; 3])> {
+    let mut it = meshes.iter().flat_map(|m| m.vertices.iter());
+    let first = *it.next()?;
+    Some(it.fold((first, first), |(lo, hi), p| {
+        (
+            [0, 1, 2].map(|d| lo[d].min(p[d])),
+            [0, 1, 2].map(|d| hi[d].max(p[d])),
+        )
+    }))
+}

@@ -1,0 +1,521 @@
+//! Scene files (TOML, `../shared/docs/interface.md`): the body, the physics the user believes
+//! in, which effects the model includes, time stepping and fitting defaults.
+//!
+//! Unknown keys are errors (a typo must not silently fall back to a default). Relative paths
+//! are relative to the scene file. Effects: `gravity`, `damping`, `ground`, `corotation`,
+//! `stiffness_field`, `initial_velocity`; with `[model]` absent, every effect whose section is
+//! present is on, plus corotation.
+
+use crate::error::Error;
+use crate::fem::{Aabb, Ground, Model};
+use gpumat::Vec3;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// The effect vocabulary.
+pub const EFFECTS: [&str; 6] = [
+    "gravity",
+    "damping",
+    "ground",
+    "corotation",
+    "stiffness_field",
+    "initial_velocity",
+];
+
+/// `[body]`
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BodySection {
+    /// thesis `.sdf` or `.npy` file
+    pub sdf: Option<PathBuf>,
+    /// triangle mesh file
+    pub mesh: Option<PathBuf>,
+    /// analytic shape
+    pub shape: Option<crate::shapes::Shape>,
+    /// origin of an `.npy` grid
+    pub origin: Option<[f64; 3]>,
+    /// spacing of an `.npy` grid
+    pub spacing: Option<f64>,
+    /// grid cells per world unit (mesh and shape)
+    pub resolution: Option<f64>,
+}
+
+/// `[material]`
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSection {
+    /// Young's modulus
+    pub young: f64,
+    /// Poisson ratio
+    pub poisson: f64,
+    /// density
+    #[serde(default = "one")]
+    pub density: f64,
+}
+fn one() -> f64 {
+    1.0
+}
+
+/// `[damping]`
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DampingSection {
+    /// Rayleigh mass coefficient
+    #[serde(default)]
+    pub mass: f64,
+    /// Rayleigh stiffness coefficient
+    #[serde(default)]
+    pub stiffness: f64,
+}
+
+/// `[gravity]`
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GravitySection {
+    /// acceleration vector
+    pub acceleration: [f64; 3],
+}
+
+/// `[ground]`
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GroundSection {
+    /// normal (normalized on load)
+    #[serde(default = "up")]
+    pub normal: [f64; 3],
+    /// the ground is `normal . x >= height`
+    #[serde(default)]
+    pub height: f64,
+    /// spring stiffness
+    #[serde(default = "ground_k")]
+    pub stiffness: f64,
+    /// softmin alpha
+    #[serde(default = "ground_alpha")]
+    pub softness: f64,
+    /// time discretization of the contact force: "implicit" (default) or "thesis"
+    #[serde(default)]
+    pub scheme: ContactSchemeName,
+}
+
+/// `[ground].scheme`
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ContactSchemeName {
+    /// linearized implicit contact (stable for stiff springs)
+    #[default]
+    Implicit,
+    /// the thesis' explicit prediction
+    Thesis,
+}
+fn up() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn ground_k() -> f64 {
+    1.0e4
+}
+fn ground_alpha() -> f64 {
+    100.0
+}
+
+/// `[[dirichlet]]`
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DirichletSection {
+    /// lower corner
+    pub min: [f64; 3],
+    /// upper corner
+    pub max: [f64; 3],
+}
+
+/// `[initial]`
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSection {
+    /// linear velocity
+    #[serde(default)]
+    pub velocity: [f64; 3],
+    /// angular velocity about the center of mass
+    #[serde(default)]
+    pub angular_velocity: [f64; 3],
+}
+
+/// `[time]`
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSection {
+    /// time step
+    #[serde(default = "dt")]
+    pub dt: f64,
+    /// number of steps
+    #[serde(default = "steps")]
+    pub steps: usize,
+    /// Newmark theta
+    #[serde(default = "theta")]
+    pub theta: f64,
+}
+fn dt() -> f64 {
+    0.01
+}
+fn steps() -> usize {
+    30
+}
+fn theta() -> f64 {
+    0.6
+}
+impl Default for TimeSection {
+    fn default() -> Self {
+        Self {
+            dt: dt(),
+            steps: steps(),
+            theta: theta(),
+        }
+    }
+}
+
+/// `[model]`
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSection {
+    /// the effects the model includes
+    pub effects: Vec<String>,
+    /// resolution of a heterogeneous Young's modulus
+    pub stiffness_field: Option<StiffnessFieldSection>,
+}
+
+/// `[model].stiffness_field`
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StiffnessFieldSection {
+    /// coarse cells per axis
+    pub cells: [usize; 3],
+}
+
+/// `[numerics]` (extension): solver and discretization constants.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct NumericsSection {
+    /// Nitsche penalty eta
+    #[serde(default = "eta")]
+    pub nitsche_eta: f64,
+    /// relative CG tolerance
+    #[serde(default = "cg_tol")]
+    pub cg_tolerance: f64,
+    /// CG iteration limit
+    #[serde(default = "cg_max")]
+    pub cg_max_iterations: usize,
+}
+fn eta() -> f64 {
+    1e8
+}
+fn cg_tol() -> f64 {
+    1e-8
+}
+fn cg_max() -> usize {
+    2000
+}
+impl Default for NumericsSection {
+    fn default() -> Self {
+        Self {
+            nitsche_eta: eta(),
+            cg_tolerance: cg_tol(),
+            cg_max_iterations: cg_max(),
+        }
+    }
+}
+
+/// A parsed scene file.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// the body
+    pub body: BodySection,
+    /// the material
+    pub material: MaterialSection,
+    /// Rayleigh damping
+    pub damping: Option<DampingSection>,
+    /// gravity
+    pub gravity: Option<GravitySection>,
+    /// ground
+    pub ground: Option<GroundSection>,
+    /// Dirichlet boxes
+    #[serde(default)]
+    pub dirichlet: Vec<DirichletSection>,
+    /// initial motion
+    pub initial: Option<InitialSection>,
+    /// time stepping
+    #[serde(default)]
+    pub time: TimeSection,
+    /// effects of the model
+    pub model: Option<ModelSection>,
+    /// fitting defaults (read by the adjoint layer)
+    pub fit: Option<toml::Value>,
+    /// numerics
+    #[serde(default)]
+    pub numerics: NumericsSection,
+    /// the scene file's folder (set on load)
+    #[serde(skip)]
+    pub dir: PathBuf,
+    /// the scene file (set on load)
+    #[serde(skip)]
+    pub path: PathBuf,
+}
+
+impl Scene {
+    /// Reads and checks a scene file.
+    pub fn load(path: &Path) -> Result<Scene, Error> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses scene text; `path` names the file in errors and anchors relative paths.
+    pub fn parse(text: &str, path: &Path) -> Result<Scene, Error> {
+        let mut scene: Scene = toml::from_str(text).map_err(|e| {
+            let msg = e.message().replace('\n', " ");
+            let at = e
+                .span()
+                .map(|s| {
+                    let line = text[..s.start.min(text.len())].matches('\n').count() + 1;
+                    format!("line {line}: ")
+                })
+                .unwrap_or_default();
+            Error::format(path, format!("{at}{msg}"))
+        })?;
+        scene.path = path.to_path_buf();
+        scene.dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        scene.check(path)?;
+        Ok(scene)
+    }
+
+    fn check(&self, path: &Path) -> Result<(), Error> {
+        let b = &self.body;
+        let given = [b.sdf.is_some(), b.mesh.is_some(), b.shape.is_some()]
+            .iter()
+            .filter(|&&x| x)
+            .count();
+        if given != 1 {
+            return Err(Error::format(
+                path,
+                "body: give exactly one of `sdf`, `mesh`, `shape`",
+            ));
+        }
+        if let Some(m) = &self.model {
+            for e in &m.effects {
+                if !EFFECTS.contains(&e.as_str()) {
+                    return Err(Error::format(
+                        path,
+                        format!(
+                            "model.effects: unknown effect `{e}` (known: {})",
+                            EFFECTS.join(", ")
+                        ),
+                    ));
+                }
+                let section = match e.as_str() {
+                    "gravity" => self.gravity.is_some(),
+                    "damping" => self.damping.is_some(),
+                    "ground" => self.ground.is_some(),
+                    "initial_velocity" => self.initial.is_some(),
+                    "stiffness_field" => m.stiffness_field.is_some(),
+                    _ => true,
+                };
+                if !section {
+                    let name = if e == "initial_velocity" {
+                        "initial"
+                    } else {
+                        e.as_str()
+                    };
+                    let name = if e == "stiffness_field" {
+                        "model.stiffness_field"
+                    } else {
+                        name
+                    };
+                    return Err(Error::format(
+                        path,
+                        format!("model.effects: `{e}` is listed but the scene has no [{name}] section"),
+                    ));
+                }
+            }
+        }
+        self.to_model()
+            .validate()
+            .map_err(|e| Error::format(path, e.to_string()))
+    }
+
+    /// True when the model includes `effect`.
+    pub fn effect_on(&self, effect: &str) -> bool {
+        match &self.model {
+            Some(m) => m.effects.iter().any(|e| e == effect),
+            None => match effect {
+                "corotation" => true,
+                "gravity" => self.gravity.is_some(),
+                "damping" => self.damping.is_some(),
+                "ground" => self.ground.is_some(),
+                "initial_velocity" => self.initial.is_some(),
+                _ => false,
+            },
+        }
+    }
+
+    /// Resolves a path given in the scene.
+    pub fn resolve(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.dir.join(p)
+        }
+    }
+
+    /// The forward model with exactly the effects the scene switches on.
+    pub fn to_model(&self) -> Model {
+        let v3 = |a: [f64; 3]| Vec3::new(a[0], a[1], a[2]);
+        let mut m = Model {
+            young: self.material.young,
+            poisson: self.material.poisson,
+            density: self.material.density,
+            corotation: self.effect_on("corotation"),
+            dt: self.time.dt,
+            theta: self.time.theta,
+            nitsche_eta: self.numerics.nitsche_eta,
+            dirichlet: self
+                .dirichlet
+                .iter()
+                .map(|d| Aabb {
+                    min: d.min,
+                    max: d.max,
+                })
+                .collect(),
+            ..Model::default()
+        };
+        if let (true, Some(d)) = (self.effect_on("damping"), &self.damping) {
+            m.damping_mass = d.mass;
+            m.damping_stiffness = d.stiffness;
+        }
+        if let (true, Some(g)) = (self.effect_on("gravity"), &self.gravity) {
+            m.gravity = v3(g.acceleration);
+        }
+        if let (true, Some(g)) = (self.effect_on("ground"), &self.ground) {
+            let n = v3(g.normal);
+            let len = n.norm();
+            m.ground = Some(Ground {
+                normal: if len > 0.0 { n * (1.0 / len) } else { n },
+                height: if len > 0.0 { g.height / len } else { g.height },
+                stiffness: g.stiffness,
+                softness: g.softness,
+                scheme: match g.scheme {
+                    ContactSchemeName::Implicit => crate::fem::collision::ContactScheme::Implicit,
+                    ContactSchemeName::Thesis => crate::fem::collision::ContactScheme::Thesis,
+                },
+            });
+        }
+        if let (true, Some(i)) = (self.effect_on("initial_velocity"), &self.initial) {
+            m.initial_velocity = v3(i.velocity);
+            m.initial_angular_velocity = v3(i.angular_velocity);
+        }
+        m
+    }
+}
+
+/// Default grid resolution (cells per world unit) of meshes and shapes when `body.resolution`
+/// is absent.
+pub const DEFAULT_RESOLUTION: f64 = 20.0;
+/// Empty cells added around a body.
+pub const PADDING_CELLS: usize = 2;
+
+impl Scene {
+    /// Loads or builds the reference SDF of the body (world units, negative inside), padded so
+    /// that the body does not touch the grid border.
+    pub fn body_sdf(&self) -> Result<crate::SdfGrid, Error> {
+        let b = &self.body;
+        let resolution = b.resolution.unwrap_or(DEFAULT_RESOLUTION);
+        let sdf = if let Some(p) = &b.sdf {
+            let path = self.resolve(p);
+            let ext = path
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or("")
+                .to_ascii_lowercase();
+            let grid = match ext.as_str() {
+                "sdf" => crate::SdfGrid::read_sdf(&path)?,
+                "npy" => {
+                    let origin = b.origin.ok_or_else(|| {
+                        Error::format(&self.path, "body.origin is required for an .npy SDF")
+                    })?;
+                    let spacing = b.spacing.ok_or_else(|| {
+                        Error::format(&self.path, "body.spacing is required for an .npy SDF")
+                    })?;
+                    crate::SdfGrid::read_npy(&path, origin, spacing)?
+                }
+                other => {
+                    return Err(Error::format(
+                        &self.path,
+                        format!("body.sdf: unsupported extension `.{other}` (use .sdf or .npy)"),
+                    ))
+                }
+            };
+            grid.validate().map_err(|e| Error::format(&path, e.to_string()))?;
+            pad(&grid, PADDING_CELLS).map_err(|e| Error::format(&path, e))?
+        } else if let Some(p) = &b.mesh {
+            let path = self.resolve(p);
+            let mesh = crate::TriMesh::load(&path)?;
+            mesh.to_sdf(resolution, PADDING_CELLS)
+                .map_err(|e| Error::format(&path, e.to_string()))?
+        } else if let Some(shape) = &b.shape {
+            shape
+                .validate()
+                .map_err(|e| Error::format(&self.path, format!("body.shape: {e}")))?;
+            shape
+                .to_sdf(resolution, PADDING_CELLS)
+                .map_err(|e| Error::format(&self.path, e.to_string()))?
+        } else {
+            return Err(Error::format(
+                &self.path,
+                "body: give exactly one of `sdf`, `mesh`, `shape`",
+            ));
+        };
+        Ok(sdf)
+    }
+}
+
+/// Adds `cells` layers of nodes around an SDF grid; the new values grow by the distance to
+/// the old border. Refuses a body that reaches the border (it would be cut off).
+pub fn pad(g: &crate::SdfGrid, cells: usize) -> Result<crate::SdfGrid, String> {
+    let [nx, ny, nz] = g.dims;
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let border = i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz;
+                if border && g.values[i + nx * (j + ny * k)] < 0.0 {
+                    return Err(format!(
+                        "the body reaches the border of its SDF grid at node ({i}, {j}, {k}): it lies partly outside the grid"
+                    ));
+                }
+            }
+        }
+    }
+    let p = cells as i64;
+    let dims = [nx + 2 * cells, ny + 2 * cells, nz + 2 * cells];
+    let h = g.spacing;
+    let origin = [
+        g.origin[0] - p as f64 * h,
+        g.origin[1] - p as f64 * h,
+        g.origin[2] - p as f64 * h,
+    ];
+    let mut values = Vec::with_capacity(dims[0] * dims[1] * dims[2]);
+    for k in 0..dims[2] as i64 {
+        for j in 0..dims[1] as i64 {
+            for i in 0..dims[0] as i64 {
+                let (oi, oj, ok) = (i - p, j - p, k - p);
+                let ci = oi.clamp(0, nx as i64 - 1);
+                let cj = oj.clamp(0, ny as i64 - 1);
+                let ck = ok.clamp(0, nz as i64 - 1);
+                let d = (((oi - ci).pow(2) + (oj - cj).pow(2) + (ok - ck).pow(2)) as f64).sqrt() * h;
+                values.push(g.values[ci as usize + nx * (cj as usize + ny * ck as usize)] + d);
+            }
+        }
+    }
+    Ok(crate::SdfGrid {
+        origin,
+        spacing: h,
+        dims,
+        values,
+    })
+}

@@ -1,0 +1,149 @@
+//! The thesis `.sdf` binary format (little-endian):
+//!
+//! | bytes | type | meaning |
+//! |---|---|---|
+//! | 0..4 | int32 | `resolution`: voxels per world unit |
+//! | 4..16 | int32\[3\] | `offset`: lattice index of node (0, 0, 0) |
+//! | 16..28 | int32\[3\] | `size`: node counts in x, y, z |
+//! | 28.. | float32\[size product\] | values in voxel units, x fastest, negative inside |
+//!
+//! Node `(i, j, k)` is at world position `(offset + (i, j, k)) / resolution`; world values are
+//! the stored ones divided by `resolution`.
+
+use super::SdfGrid;
+use crate::Error;
+use std::path::Path;
+
+const HEADER: usize = 28;
+
+fn i32_at(bytes: &[u8], at: usize) -> i32 {
+    i32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
+}
+
+impl SdfGrid {
+    /// Reads a thesis `.sdf` file (format in the [module docs](crate::sdf)).
+    ///
+    /// Every problem is an error naming the file, never a panic: a truncated or over-long file
+    /// (bytes expected vs found), a non-positive resolution or size, a node count over 2^31
+    /// (refused before allocating), and NaN or infinite values (the node is named).
+    pub fn read_sdf(path: impl AsRef<Path>) -> Result<SdfGrid, Error> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bad = |msg: String| Error::format(path, msg);
+        if bytes.len() < HEADER {
+            return Err(bad(format!(
+                "truncated .sdf header: expected at least {HEADER} bytes, found {}",
+                bytes.len()
+            )));
+        }
+        let resolution = i32_at(&bytes, 0);
+        let offset = [i32_at(&bytes, 4), i32_at(&bytes, 8), i32_at(&bytes, 12)];
+        let size = [i32_at(&bytes, 16), i32_at(&bytes, 20), i32_at(&bytes, 24)];
+        if resolution <= 0 {
+            return Err(bad(format!("resolution must be positive, found {resolution}")));
+        }
+        if size.iter().any(|&s| s <= 0) {
+            return Err(bad(format!(
+                "size must be positive in x, y and z, found {size:?}"
+            )));
+        }
+        let count: u64 = size.iter().map(|&s| s as u64).product();
+        if count > 1u64 << 31 {
+            return Err(bad(format!(
+                "absurd size {size:?}: {count} nodes (more than 2^31); not an .sdf file?"
+            )));
+        }
+        let expected = HEADER as u64 + 4 * count;
+        if (bytes.len() as u64) < expected {
+            return Err(bad(format!(
+                "truncated .sdf file: size {size:?} needs {expected} bytes, found {}",
+                bytes.len()
+            )));
+        }
+        if (bytes.len() as u64) > expected {
+            return Err(bad(format!(
+                "trailing data in .sdf file: size {size:?} needs {expected} bytes, found {}",
+                bytes.len()
+            )));
+        }
+        let dims = size.map(|s| s as usize);
+        let scale = 1.0 / resolution as f64;
+        let mut values = Vec::with_capacity(count as usize);
+        for (n, chunk) in bytes[HEADER..].chunks_exact(4).enumerate() {
+            let v = f32::from_le_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
+            if !v.is_finite() {
+                let (i, j, k) = (n % dims[0], (n / dims[0]) % dims[1], n / (dims[0] * dims[1]));
+                return Err(bad(format!("value at node ({i}, {j}, {k}) is {v}")));
+            }
+            values.push(v as f64 / resolution as f64);
+        }
+        Ok(SdfGrid {
+            origin: offset.map(|o| o as f64 / resolution as f64),
+            spacing: scale,
+            dims,
+            values,
+        })
+    }
+
+    /// Writes the grid as a thesis `.sdf` file (values converted to voxel units, float32).
+    ///
+    /// The format can only hold grids whose spacing is `1 / resolution` for an integer
+    /// resolution and whose origin lies on that lattice (both within round-off); otherwise, or
+    /// for non-finite values or sizes over `i32`, this returns an error naming the file.
+    pub fn write_sdf(&self, path: impl AsRef<Path>) -> Result<(), Error> {
+        let path = path.as_ref();
+        let refuse = |msg: String| Error::Invalid(format!("{}: cannot write .sdf: {msg}", path.display()));
+        let inv = 1.0 / self.spacing;
+        let resolution = inv.round();
+        if !(self.spacing > 0.0 && inv.is_finite())
+            || resolution < 1.0
+            || resolution > i32::MAX as f64
+            || (inv - resolution).abs() > 1e-9 * resolution
+        {
+            return Err(refuse(format!(
+                "spacing {} is not 1/resolution for an integer resolution",
+                self.spacing
+            )));
+        }
+        let mut offset = [0i32; 3];
+        for a in 0..3 {
+            let o = self.origin[a] * resolution;
+            let r = o.round();
+            if !(o.is_finite() && (o - r).abs() <= 1e-6 * r.abs().max(1.0)) || r.abs() > i32::MAX as f64 {
+                return Err(refuse(format!(
+                    "origin {:?} is not on the lattice of spacing 1/{resolution}",
+                    self.origin
+                )));
+            }
+            offset[a] = r as i32;
+        }
+        if self.dims.iter().any(|&n| n == 0 || n > i32::MAX as usize) {
+            return Err(refuse(format!("size {:?} does not fit the format", self.dims)));
+        }
+        if self.values.len() != self.node_count() {
+            return Err(refuse(format!(
+                "{} values for {:?} nodes",
+                self.values.len(),
+                self.dims
+            )));
+        }
+        if let Some(n) = self.values.iter().position(|v| !v.is_finite()) {
+            return Err(refuse(format!(
+                "value {} at flat index {n} is not finite",
+                self.values[n]
+            )));
+        }
+        let mut out = Vec::with_capacity(HEADER + 4 * self.values.len());
+        out.extend_from_slice(&(resolution as i32).to_le_bytes());
+        for o in offset {
+            out.extend_from_slice(&o.to_le_bytes());
+        }
+        for n in self.dims {
+            out.extend_from_slice(&(n as i32).to_le_bytes());
+        }
+        for &v in &self.values {
+            out.extend_from_slice(&((v * resolution) as f32).to_le_bytes());
+        }
+        std::fs::write(path, out).map_err(|e| Error::io(path, e))
+    }
+}

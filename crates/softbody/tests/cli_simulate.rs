@@ -1,0 +1,165 @@
+//! `softbody simulate` end to end: a small scene runs and writes its files and JSON; bad input
+//! gives one line on stderr, a non-zero exit code and no panic.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn softbody() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_softbody"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("softbody-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+const SMALL: &str = r#"
+[body]
+shape = { kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }
+resolution = 10
+[material]
+young = 2000.0
+poisson = 0.3
+[gravity]
+acceleration = [0.0, -10.0, 0.0]
+[[dirichlet]]
+min = [-1.0, 0.0, -1.0]
+max = [-0.2, 2.0, 1.0]
+[time]
+dt = 0.01
+steps = 4
+"#;
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn simulate_writes_frames_picture_and_json() {
+    let dir = tmp("ok");
+    let scene = write(&dir, "small.toml", SMALL);
+    let out = dir.join("out");
+    let o = softbody()
+        .args([
+            "simulate",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("exactly one JSON object");
+    for key in ["nodes", "cells", "steps", "seconds", "solver", "final"] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    assert_eq!(v["steps"], 4);
+    assert!(v["nodes"]["active"].as_u64().unwrap() > 0);
+    assert_eq!(v["solver"]["iterations"].as_array().unwrap().len(), 4);
+    assert!(v["final"]["max_displacement"].as_f64().unwrap() > 0.0);
+    for f in 0..=4 {
+        assert!(out.join(format!("frames/{f:04}.ply")).exists(), "frame {f}");
+    }
+    let png = std::fs::read(out.join("picture.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+fn expect_error(scene_text: &str, needle: &str) {
+    let dir = tmp(&needle.replace(|c: char| !c.is_alphanumeric(), "_"));
+    let scene = write(&dir, "bad.toml", scene_text);
+    let o = softbody()
+        .args([
+            "simulate",
+            scene.to_str().unwrap(),
+            "--out",
+            dir.join("out").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "should fail: {needle}");
+    assert_eq!(o.status.code(), Some(1), "exit code for {needle}: {err}");
+    assert!(!err.contains("panicked"), "panic: {err}");
+    assert_eq!(err.trim().lines().count(), 1, "one line expected: {err}");
+    assert!(err.contains(needle), "`{needle}` not in: {err}");
+}
+
+#[test]
+fn bad_parameters_are_one_line_errors() {
+    expect_error(&SMALL.replace("young = 2000.0", "young = -5.0"), "material.young");
+    expect_error(
+        &SMALL.replace("poisson = 0.3", "poisson = 0.5"),
+        "material.poisson",
+    );
+    expect_error(&SMALL.replace("dt = 0.01", "dt = 0.0"), "time.dt");
+    expect_error(&(SMALL.to_string() + "theta = 1.0\n"), "time.theta");
+    expect_error(
+        &SMALL
+            .replace("min = [-1.0, 0.0, -1.0]", "min = [5.0, 5.0, 5.0]")
+            .replace("max = [-0.2, 2.0, 1.0]", "max = [6.0, 6.0, 6.0]"),
+        "dirichlet[0]",
+    );
+    expect_error(
+        &SMALL.replace("young = 2000.0", "young = 2000.0\nyoungs = 3.0"),
+        "unknown field",
+    );
+    expect_error(
+        &SMALL.replace(
+            "[gravity]",
+            "[model]\neffects = [\"gravity\", \"magic\"]\n[gravity]",
+        ),
+        "magic",
+    );
+}
+
+#[test]
+fn bad_bodies_are_one_line_errors() {
+    let dir = tmp("bodies");
+    // truncated .sdf
+    let sdf = dir.join("trunc.sdf");
+    let mut bytes = Vec::new();
+    for v in [10i32, 0, 0, 0, 4, 4, 4] {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    bytes.extend_from_slice(&[0u8; 10]);
+    std::fs::write(&sdf, &bytes).unwrap();
+    let body = format!("[body]\nsdf = \"{}\"\n", sdf.display());
+    let rest = SMALL.split_once("[material]").unwrap().1;
+    expect_error(&format!("{body}[material]{rest}"), "trunc.sdf");
+    // NaN values
+    let sdf = dir.join("nan.sdf");
+    let mut bytes = Vec::new();
+    for v in [10i32, 0, 0, 0, 2, 2, 2] {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    for i in 0..8 {
+        let v: f32 = if i == 3 { f32::NAN } else { 1.0 };
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(&sdf, &bytes).unwrap();
+    let body = format!("[body]\nsdf = \"{}\"\n", sdf.display());
+    expect_error(&format!("{body}[material]{rest}"), "nan.sdf");
+    // missing file
+    expect_error(
+        &format!("[body]\nsdf = \"/nonexistent/x.sdf\"\n[material]{rest}"),
+        "x.sdf",
+    );
+    // empty body: a sphere of radius 0.001 at resolution 10 has no inside node
+    let empty = SMALL.replace(
+        "shape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }",
+        "shape = { kind = \"sphere\", center = [0.05, 1.05, 0.05], radius = 0.001 }",
+    );
+    expect_error(&empty, "empty body");
+    // a body too large for memory: refused before allocating
+    let huge = SMALL.replace("resolution = 10", "resolution = 100000");
+    expect_error(&huge, "resolution");
+}
