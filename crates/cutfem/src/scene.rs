@@ -203,6 +203,21 @@ pub struct NumericsSection {
     /// CG iteration limit
     #[serde(default = "cg_max")]
     pub cg_max_iterations: usize,
+    /// extension of the displacements into empty nodes before advection: "harmonic" (the
+    /// thesis' Poisson diffusion) or "linear" (reproduces linear fields exactly)
+    #[serde(default)]
+    pub diffusion: DiffusionName,
+}
+
+/// `[numerics].diffusion`
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum DiffusionName {
+    /// the thesis' 7-point Poisson diffusion
+    #[default]
+    Harmonic,
+    /// second-difference minimization, exact for linear fields
+    Linear,
 }
 fn eta() -> f64 {
     1e8
@@ -219,6 +234,7 @@ impl Default for NumericsSection {
             nitsche_eta: eta(),
             cg_tolerance: cg_tol(),
             cg_max_iterations: cg_max(),
+            diffusion: DiffusionName::default(),
         }
     }
 }
@@ -417,8 +433,8 @@ impl Scene {
 /// Default grid resolution (cells per world unit) of meshes and shapes when `body.resolution`
 /// is absent.
 pub const DEFAULT_RESOLUTION: f64 = 20.0;
-/// Empty cells added around a body.
-pub const PADDING_CELLS: usize = 2;
+/// Empty cells added around a body (the diffusion band of sec. 4.4.5 reaches 5 nodes out).
+pub const PADDING_CELLS: usize = 6;
 
 impl Scene {
     /// Loads or builds the reference SDF of the body (world units, negative inside), padded so

@@ -1,9 +1,12 @@
 //! `softbody simulate SCENE [--out DIR] [--json]`: the forward run.
 
 use crate::progress;
+use cutfem::fem::advect::{advect, Diffusion, Extension, DIFFUSION_DISTANCE};
 use cutfem::fem::{grid::INACTIVE, Grid, Simulation};
 use cutfem::render::{render, Camera, Coloring, Ground, Image, RenderItem, RenderOptions};
+use cutfem::scene::DiffusionName;
 use cutfem::scene::Scene;
+use cutfem::sdf::NpyDtype;
 use cutfem::surface::{extract_surface, write_ply, Surface};
 use cutfem::TriMesh;
 use serde_json::json;
@@ -97,6 +100,13 @@ pub fn run(a: Args) -> Result<(), String> {
     sim.solver.cg.tolerance = scene.numerics.cg_tolerance;
     sim.solver.cg.max_iterations = scene.numerics.cg_max_iterations;
     let surface = extract_surface(&sim.grid.sdf);
+    let extension = match scene.numerics.diffusion {
+        DiffusionName::Harmonic => Extension::Harmonic,
+        DiffusionName::Linear => Extension::Linear,
+    };
+    let band =
+        Diffusion::with_distance(&sim.grid, DIFFUSION_DISTANCE, extension).map_err(|e| e.to_string())?;
+    let mut advected = None;
 
     let picks: Vec<usize> = {
         let n = a.picture_frames.max(1);
@@ -118,7 +128,7 @@ pub fn run(a: Args) -> Result<(), String> {
     }
 
     let pb = progress::bar(steps as u64, "simulate", a.json);
-    let (mut assembly, mut solve, mut collision) = (0.0, 0.0, 0.0);
+    let (mut assembly, mut solve, mut collision, mut advection) = (0.0, 0.0, 0.0, 0.0);
     let mut iterations = Vec::with_capacity(steps);
     let mut max_residual: f64 = 0.0;
     let mut fallbacks = 0;
@@ -130,11 +140,18 @@ pub fn run(a: Args) -> Result<(), String> {
         iterations.push(info.iterations);
         max_residual = max_residual.max(info.residual);
         fallbacks += info.fallback as usize;
-        if !sim.u.as_slice().iter().all(|x| gpumat::Scalar::is_finite(x)) {
+        if !sim.u.as_slice().iter().all(gpumat::Scalar::is_finite) {
             return Err(format!(
                 "step {f}: the simulation diverged (non-finite displacement); reduce time.dt"
             ));
         }
+        // sec. 4.4.5: diffuse into the empty band, advect the level set
+        let t_adv = Instant::now();
+        let u_band = band
+            .diffuse(&sim.u)
+            .map_err(|e| format!("step {f}: diffusion: {e}"))?;
+        advected = Some(advect(&sim.grid, &band, &u_band).map_err(|e| format!("step {f}: advection: {e}"))?);
+        advection += t_adv.elapsed().as_secs_f64();
         let mesh = deformed_surface(&surface, &sim.grid, &sim.u);
         write_frame(f, &mesh)?;
         if picks.contains(&f) {
@@ -156,24 +173,43 @@ pub fn run(a: Args) -> Result<(), String> {
     picture(&shown, ground)
         .save_png(&pic_path)
         .map_err(|e| e.to_string())?;
+    // the advected level set of the last frame, as data and as a picture
+    let mut advected_files = serde_json::Value::Null;
+    if let Some(adv) = &advected {
+        let npy = out.join("final_advected.npy");
+        adv.write_npy(&npy, NpyDtype::F32).map_err(|e| e.to_string())?;
+        let adv_png = out.join("final_advected.png");
+        let mesh = extract_surface(adv).mesh;
+        picture(&[(steps, mesh)], ground)
+            .save_png(&adv_png)
+            .map_err(|e| e.to_string())?;
+        advected_files = json!({
+            "sdf_npy": npy.display().to_string(), "origin": adv.origin, "spacing": adv.spacing,
+            "dims": adv.dims, "picture": adv_png.display().to_string()
+        });
+    }
 
     let g = &sim.grid;
     let summary = json!({
         "scene": a.scene.display().to_string(),
         "out": out.display().to_string(),
-        "nodes": {"active": g.dofs(), "free": g.dofs(), "grid": g.sdf.values.len()},
+        "nodes": {"active": g.dofs(), "free": g.dofs(), "empty": band.empty_count(), "grid": g.sdf.values.len()},
         "cells": {"active": g.cells.len(), "cut": g.cut_cells()},
         "cell_size": g.h(),
         "volume": g.volume(),
         "mass": sim.total_mass(),
         "steps": steps,
         "seconds": {
-            "assembly": assembly, "solve": solve, "collision": collision,
+            "assembly": assembly, "solve": solve, "collision": collision, "advection": advection,
             "total": t_total.elapsed().as_secs_f64()
         },
         "solver": {"iterations": iterations, "max_residual": max_residual, "fallbacks": fallbacks},
         "final": {"max_displacement": sim.max_displacement()},
-        "files": {"frames": frames_dir.display().to_string(), "picture": pic_path.display().to_string()},
+        "files": {
+            "frames": frames_dir.display().to_string(),
+            "picture": pic_path.display().to_string(),
+            "advected": advected_files
+        },
     });
     std::fs::write(
         out.join("summary.json"),
