@@ -60,6 +60,9 @@ pub struct StepInfo {
     pub contacts: usize,
     /// seconds in assembly (rotations, stiffness, corotation forces, A and b)
     pub assembly_s: f64,
+    /// the part of `assembly_s` spent on rotations and stiffness values (the thesis' "matrix
+    /// assembly")
+    pub stiffness_s: f64,
     /// seconds in collision forces
     pub collision_s: f64,
     /// seconds in the linear solve
@@ -170,7 +173,8 @@ impl Simulation {
     /// Stiffness values and elastic forces for the current state: `K` (rotated when
     /// corotation is on, with Nitsche terms) into `self.k`, body + corotation forces into
     /// `self.f`.
-    fn assemble(&mut self) {
+    fn assemble(&mut self) -> f64 {
+        let t = Instant::now();
         let m = self.material();
         let blocks = self.blocks();
         let rot = self
@@ -185,6 +189,7 @@ impl Simulation {
             &self.dirichlet,
             &mut self.k,
         );
+        let stiffness_s = t.elapsed().as_secs_f64();
         let g = self.model.gravity;
         self.f.assign(self.mass.ex().cwise_mul(gpumat::scalar(g)));
         if let Some(r) = &rot {
@@ -192,6 +197,7 @@ impl Simulation {
                 .add_corotation_forces(&self.grid, &blocks, r, &mut self.f);
         }
         self.blocks = Some(blocks);
+        stiffness_s
     }
 
     /// Advances one time step.
@@ -200,7 +206,7 @@ impl Simulation {
         let (dt, theta) = (self.model.dt, self.model.theta);
         let (a1, a2) = (self.model.damping_mass, self.model.damping_stiffness);
         let t0 = Instant::now();
-        self.assemble();
+        info.stiffness_s = self.assemble();
         info.assembly_s += t0.elapsed().as_secs_f64();
 
         let t1 = Instant::now();
