@@ -41,8 +41,12 @@ int main(int argc, char** argv) {
         ok = cg.info() == Eigen::Success;
         do_not_optimize(result.data());
     });
-    std::printf("time_s=%.9g samples=%d inner=%ld iterations=%ld error=%.6g converged=%d rhs_checksum=%.9g "
-                "threads=%d\n",
-                m.seconds, m.samples, m.inner, iterations, error, ok ? 1 : 0, checksum(rhs), Eigen::nbThreads());
+    // Eigen's loop breaks on convergence before counting the iteration that converged, so
+    // `iterations()` is one less than the number of updates (SpMVs in the loop) it made.
+    const long updates = ok ? iterations + 1 : iterations;
+    std::printf("time_s=%.9g samples=%d inner=%ld iterations=%ld updates=%ld error=%.6g converged=%d "
+                "rhs_checksum=%.9g threads=%d\n",
+                m.seconds, m.samples, m.inner, iterations, updates, error, ok ? 1 : 0, checksum(rhs),
+                Eigen::nbThreads());
     return 0;
 }

@@ -42,3 +42,4 @@ pub fn ratio(a: Option<f64>, b: Option<f64>) -> Option<f64> {
 pub fn progress(msg: &str) {
     eprintln!("[tables] {msg}");
 }
+pub mod table_cuboid;

@@ -18,8 +18,10 @@ pub struct Machine {
     pub date: String,
     /// `quick` or `full`
     pub mode: String,
-    /// STREAM triad bandwidth on all cores, GB/s (1e9 bytes/s)
+    /// STREAM triad bandwidth on all cores, GB/s (1e9 bytes/s): the best sample
     pub stream_triad_gbs: f64,
+    /// the STREAM triad samples taken before, between and after the tables, GB/s
+    pub stream_triad_runs_gbs: Vec<f64>,
     /// STREAM triad array length (f32 elements per array)
     pub stream_triad_len: usize,
     /// how times were taken

@@ -28,6 +28,21 @@ impl PeerOutput {
     pub fn f64(&self, key: &str) -> Option<f64> {
         self.0.get(key)?.parse().ok()
     }
+    /// The faster of two outputs (by `time_s`); a missing one loses.
+    pub fn faster(a: Option<Self>, b: Option<Self>) -> Option<Self> {
+        match (a, b) {
+            (Some(a), Some(b)) => {
+                let (ta, tb) = (a.f64("time_s"), b.f64("time_s"));
+                if tb.is_some() && (ta.is_none() || tb < ta) {
+                    Some(b)
+                } else {
+                    Some(a)
+                }
+            }
+            (a, None) => a,
+            (None, b) => b,
+        }
+    }
     /// An integer field.
     pub fn usize(&self, key: &str) -> Option<usize> {
         self.0.get(key)?.parse().ok()

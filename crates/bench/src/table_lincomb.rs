@@ -2,9 +2,10 @@
 //! `d = sum_i alpha_i v_i` in f32 with gpumat fused and unfused, Eigen and numpy.
 
 use crate::lincomb::{fused, fused_bytes, unfused, unfused_bytes};
+use crate::peers::PeerOutput;
 use crate::problems::{checksum, lincomb_inputs};
 use crate::report::{col, Col, Fmt};
-use crate::timing::measure;
+use crate::timing::{best_of, measure_interleaved, Policy};
 use crate::{progress, ratio, thesis, Ctx};
 use gpumat::Matrix;
 use serde::Serialize;
@@ -37,6 +38,9 @@ pub struct LincombRow {
     pub gpumat_unfused_gbs: f64,
     /// `bytes / eigen_s`, GB/s
     pub eigen_gbs: Option<f64>,
+    /// the STREAM triad bandwidth this row is compared with (the better sample around its
+    /// table), GB/s
+    pub stream_triad_gbs: f64,
     /// `gpumat_gbs / stream_triad_gbs`
     pub fraction_of_stream: f64,
     /// `gpumat_unfused_s / gpumat_s`
@@ -64,11 +68,31 @@ pub struct LincombRow {
 pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64, f64)>) -> LincombRow {
     progress(&format!("lincomb n={n} k={k}"));
     let p = ctx.policy;
+    let one = Policy { rounds: 1, ..p };
     let (vs, alphas) = lincomb_inputs(n, k);
     let mut d = Matrix::<f32>::zeros(n, 1, 1);
-    let mf = measure(&p, || {
-        fused(black_box(&mut d), black_box(&vs), black_box(&alphas));
-    });
+    let mut du = Matrix::<f32>::zeros(n, 1, 1);
+    let case = vec![n.to_string(), k.to_string()];
+    let (mut mf, mut mu, mut eigen, mut numpy) = (None, None, None, None);
+    // Rounds side by side: fused, unfused, Eigen, numpy in turn, each keeping its best.
+    for _ in 0..p.rounds.max(1) {
+        let m = measure_interleaved(
+            &one,
+            &mut [
+                &mut || fused(black_box(&mut d), black_box(&vs), black_box(&alphas)),
+                &mut || unfused(black_box(&mut du), black_box(&vs), black_box(&alphas)),
+            ],
+        );
+        mf = Some(best_of(mf, m[0]));
+        mu = Some(best_of(mu, m[1]));
+        if let Some(r) = ctx.peers.eigen.as_ref().map(|e| e.run("lincomb", &case, &one)) {
+            eigen = PeerOutput::faster(eigen, ctx.peers.take(r));
+        }
+        if let Some(r) = ctx.peers.numpy.as_ref().map(|np| np.lincomb(n, k, &one)) {
+            numpy = PeerOutput::faster(numpy, ctx.peers.take(r));
+        }
+    }
+    let (mf, mu) = (mf.expect("one round"), mu.expect("one round"));
     let fused_sum = checksum(d.as_slice());
     let scale: f64 = d
         .as_slice()
@@ -76,23 +100,9 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
         .map(|&x| x.abs() as f64)
         .sum::<f64>()
         .max(1e-30);
-    let mut du = Matrix::<f32>::zeros(n, 1, 1);
-    let mu = measure(&p, || {
-        unfused(black_box(&mut du), black_box(&vs), black_box(&alphas));
-    });
     let agree = |s: Option<f64>| s.map_or(true, |s| (s - fused_sum).abs() <= 1e-4 * scale);
     let mut ok = agree(Some(checksum(du.as_slice())));
     drop((vs, d, du));
-
-    let case = vec![n.to_string(), k.to_string()];
-    let eigen = match ctx.peers.eigen.as_ref().map(|e| e.run("lincomb", &case, &p)) {
-        Some(r) => ctx.peers.take(r),
-        None => None,
-    };
-    let numpy = match ctx.peers.numpy.as_ref().map(|np| np.lincomb(n, k, &p)) {
-        Some(r) => ctx.peers.take(r),
-        None => None,
-    };
     for (name, out) in [("eigen", &eigen), ("numpy", &numpy)] {
         if let Some(o) = out {
             if !agree(o.f64("checksum")) {
@@ -122,6 +132,7 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
         gpumat_gbs: gbs,
         gpumat_unfused_gbs: ubytes as f64 / mu.seconds / 1e9,
         eigen_gbs: eigen_s.map(|t| bytes as f64 / t / 1e9),
+        stream_triad_gbs: ctx.stream_gbs,
         fraction_of_stream: gbs / ctx.stream_gbs,
         fused_speedup: mu.seconds / mf.seconds,
         traffic_ratio: ubytes as f64 / bytes as f64,
@@ -132,6 +143,14 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
         thesis_cumat_ms: th.map(|t| t.1),
         thesis_eigen_ms: th.map(|t| t.2),
         thesis_numpy_ms: th.map(|t| t.3),
+    }
+}
+
+impl LincombRow {
+    /// Recomputes the fractions of STREAM for the bandwidth `stream_gbs`.
+    pub fn set_stream(&mut self, stream_gbs: f64) {
+        self.stream_triad_gbs = stream_gbs;
+        self.fraction_of_stream = self.gpumat_gbs / stream_gbs;
     }
 }
 

@@ -6,6 +6,10 @@
 //! does not count). Then repetitions run until at least [`Policy::min_samples`] are done and
 //! the [`Policy::budget`] is spent, or [`Policy::max_samples`] are done. The reported time is
 //! the minimum over repetitions of (repetition time / inner count).
+//!
+//! Systems compared with each other are measured side by side: [`Policy::rounds`] rounds, each
+//! timing every system in turn (A, B, A, B, ...), every system keeping its best round. Load
+//! from other processes that comes and goes then hits all systems alike.
 
 use std::time::{Duration, Instant};
 
@@ -20,6 +24,8 @@ pub struct Policy {
     pub budget: Duration,
     /// an inner loop makes one repetition last at least this long
     pub min_sample: Duration,
+    /// rounds of side-by-side measurement ([`measure_interleaved`], the peers' runs)
+    pub rounds: usize,
 }
 
 impl Policy {
@@ -28,8 +34,9 @@ impl Policy {
         Self {
             min_samples: 3,
             max_samples: 20,
-            budget: Duration::from_millis(250),
+            budget: Duration::from_millis(200),
             min_sample: Duration::from_millis(2),
+            rounds: 2,
         }
     }
     /// The full policy.
@@ -37,21 +44,24 @@ impl Policy {
         Self {
             min_samples: 5,
             max_samples: 50,
-            budget: Duration::from_millis(1000),
+            budget: Duration::from_millis(500),
             min_sample: Duration::from_millis(5),
+            rounds: 3,
         }
     }
     /// Human-readable description, for the `machine.timing` field.
     pub fn describe(&self) -> String {
         format!(
-            "minimum over N repetitions (N >= {} and <= {}, repeating while a case has run < {} s); \
-             one warm-up call first; a repetition loops the kernel until it lasts >= {} ms and \
-             is divided by the loop count; every system (gpumat, Eigen, numpy) uses this policy, \
-             measured side by side in the same run",
+            "minimum over N repetitions (N >= {} and <= {} per round, repeating while a round has run \
+             < {} s); one warm-up call per round; a repetition loops the kernel until it lasts >= {} ms \
+             and is divided by the loop count; {} rounds side by side (gpumat fused, gpumat unfused, \
+             Eigen, numpy in turn, each keeping its best round), in the same run; every system uses \
+             this policy",
             self.min_samples,
             self.max_samples,
             self.budget.as_secs_f64(),
-            self.min_sample.as_secs_f64() * 1e3
+            self.min_sample.as_secs_f64() * 1e3,
+            self.rounds
         )
     }
     /// The policy as command-line arguments for the peer programs:
@@ -106,6 +116,33 @@ pub fn measure(policy: &Policy, mut f: impl FnMut()) -> Measurement {
     }
 }
 
+/// The better (faster) of two measurements of the same kernel, samples added up.
+pub fn best_of(a: Option<Measurement>, b: Measurement) -> Measurement {
+    match a {
+        Some(a) if a.seconds <= b.seconds => Measurement {
+            samples: a.samples + b.samples,
+            ..a
+        },
+        Some(a) => Measurement {
+            samples: a.samples + b.samples,
+            ..b
+        },
+        None => b,
+    }
+}
+
+/// Measures every kernel of `fs` in turn, [`Policy::rounds`] times (A, B, A, B, ...); each
+/// kernel keeps its best round (`samples` adds up the rounds).
+pub fn measure_interleaved(policy: &Policy, fs: &mut [&mut dyn FnMut()]) -> Vec<Measurement> {
+    let mut best: Vec<Option<Measurement>> = vec![None; fs.len()];
+    for _ in 0..policy.rounds.max(1) {
+        for (f, b) in fs.iter_mut().zip(best.iter_mut()) {
+            *b = Some(best_of(*b, measure(policy, &mut **f)));
+        }
+    }
+    best.into_iter().map(|m| m.expect("at least one round")).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -117,6 +154,7 @@ mod tests {
             max_samples: 3,
             budget: Duration::from_millis(1),
             min_sample: Duration::from_micros(100),
+            rounds: 2,
         };
         let mut calls = 0usize;
         let m = measure(&p, || {
@@ -125,5 +163,10 @@ mod tests {
         });
         assert!(m.seconds > 0.0 && m.samples >= 2 && m.samples <= 3);
         assert_eq!(calls, 1 + m.samples * m.inner);
+        let (mut a, mut b) = (0usize, 0usize);
+        let ms = measure_interleaved(&p, &mut [&mut || a += 1, &mut || b += 1]);
+        assert_eq!(ms.len(), 2);
+        assert!(ms.iter().all(|m| m.samples >= 4));
+        assert!(a > 0 && b > 0);
     }
 }

@@ -261,19 +261,30 @@ impl Assembler {
                 if dirichlet[e] {
                     let ci = &grid.cells[e].integrals;
                     let n = Vec3::from_array(ci.normal);
-                    b = b + self.tables.nitsche_block(&ci.boundary, n, i, j, m.lambda, m.mu, m.eta);
+                    b = b + self
+                        .tables
+                        .nitsche_block(&ci.boundary, n, i, j, m.lambda, m.mu, m.eta);
                 }
                 acc = acc + b;
             }
             acc
         };
-        let upper: Vec<Mat3<f64>> = self.upper.par_iter().with_min_len(256).map(|&kk| block(kk as usize)).collect();
+        let upper: Vec<Mat3<f64>> = self
+            .upper
+            .par_iter()
+            .with_min_len(256)
+            .map(|&kk| block(kk as usize))
+            .collect();
         let values = k.batch_values_mut(0);
-        values.par_iter_mut().enumerate().with_min_len(1024).for_each(|(kk, out)| {
-            let (u, transposed) = self.source[kk];
-            let b = upper[u as usize];
-            *out = if transposed { b.transpose() } else { b };
-        });
+        values
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(1024)
+            .for_each(|(kk, out)| {
+                let (u, transposed) = self.source[kk];
+                let b = upper[u as usize];
+                *out = if transposed { b.transpose() } else { b };
+            });
     }
 
     /// Per-cell rotations from the displacement `u` (eq. 4.4.8-4.4.9).
