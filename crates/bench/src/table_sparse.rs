@@ -6,17 +6,27 @@ use crate::problems::{boundary_rhs, checksum, poisson_matrix, random_vector, SPM
 use crate::report::{col, Col, Fmt};
 use crate::timing::{best_of, measure, Policy};
 use crate::{progress, ratio, thesis, Ctx};
-use gpumat::{cg, CgError, CgParams, Jacobi, Matrix};
+use gpumat::{cg, CgError, CgParams, Jacobi, Matrix, SparseMatrix};
 use serde::Serialize;
 use std::hint::black_box;
 
 /// CG relative tolerance (cuMat's benchmark code: `setTolerance(1e-4)`).
 pub const CG_TOLERANCE: f32 = 1e-4;
 
-/// Bytes one CSR SpMV moves: values (4), column indices and row pointers (`index` bytes
-/// each), x read once and y written once (4 each).
+/// Bytes one f32 CSR SpMV moves: values (4), column indices and row pointers (`index` bytes
+/// each), x read once and y written once (4 each). Eigen's are `spmv_bytes(n, nnz, 4)`.
 pub fn spmv_bytes(n: usize, nnz: usize, index: usize) -> usize {
     nnz * (4 + index) + (n + 1) * index + 8 * n
+}
+
+/// Bytes gpumat's SpMV with `a` moves: its values, column indices and row pointers as stored
+/// (whatever their index widths), x read once and y written once.
+pub fn gpumat_spmv_bytes(a: &SparseMatrix<f32>) -> usize {
+    let p = a.pattern();
+    std::mem::size_of_val(a.values())
+        + std::mem::size_of_val(p.col_idx())
+        + std::mem::size_of_val(p.row_ptr())
+        + 8 * a.rows()
 }
 
 /// One row of B.3.
@@ -34,7 +44,7 @@ pub struct SpmvRow {
     pub gpumat_s: f64,
     /// Eigen `y.noalias() = a * x` (row-major, int indices, OpenMP)
     pub eigen_s: Option<f64>,
-    /// bytes of gpumat's product (usize = 8-byte indices)
+    /// bytes of gpumat's product (its index widths as stored in `SparsityPattern`)
     pub bytes: usize,
     /// bytes of Eigen's product (4-byte indices)
     pub eigen_bytes: usize,
@@ -94,6 +104,7 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
         .sum::<f64>()
         .max(1e-30);
     let nnz = a.nnz();
+    let bytes = gpumat_spmv_bytes(&a);
     drop((a, x, y));
     let mut ok = true;
     if let Some(o) = &eigen {
@@ -106,7 +117,6 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
         }
     }
     let eigen_s = eigen.and_then(|o| o.f64("time_s"));
-    let bytes = spmv_bytes(n, nnz, std::mem::size_of::<usize>());
     let eigen_bytes = spmv_bytes(n, nnz, 4);
     let gbs = bytes as f64 / m.seconds / 1e9;
     let eigen_gbs = eigen_s.map(|t| eigen_bytes as f64 / t / 1e9);
@@ -185,7 +195,7 @@ pub struct CgRow {
     pub speedup_vs_eigen: Option<f64>,
     /// `eigen_per_iteration_s / gpumat_per_iteration_s` (>= 1: gpumat's iteration is no slower)
     pub per_iteration_speedup_vs_eigen: Option<f64>,
-    /// bytes one gpumat CG iteration moves: its SpMV (8-byte indices) and 7 vector passes
+    /// bytes one gpumat CG iteration moves: its SpMV (indices as stored) and 7 vector passes
     /// (17 n f32: two dots, a norm, three updates, the Jacobi product)
     pub bytes: usize,
     /// bytes one Eigen CG iteration moves (4-byte indices, the same vector passes)
@@ -251,6 +261,7 @@ pub fn cg_row(ctx: &mut Ctx, g: usize) -> CgRow {
     };
     let rhs_sum = checksum(b.as_slice());
     let nnz = a.nnz();
+    let spmv_bytes_a = gpumat_spmv_bytes(&a);
     drop((a, b, x));
     let same_rhs = eigen.as_ref().map(|o| {
         o.f64("rhs_checksum")
@@ -271,7 +282,7 @@ pub fn cg_row(ctx: &mut Ctx, g: usize) -> CgRow {
     };
     // The SpMV q = A p (its bytes count p and q once), then 7 vector passes moving 17 n f32:
     // dot p.q 2, x update 3, r update 3, Jacobi 3, dot r.z 2, norm r 1, p update 3.
-    let bytes_it = spmv_bytes(n, nnz, std::mem::size_of::<usize>()) + 4 * 17 * n;
+    let bytes_it = spmv_bytes_a + 4 * 17 * n;
     let gbs = bytes_it as f64 / per_it / 1e9;
     let th = thesis::b4(g);
     CgRow {

@@ -129,7 +129,7 @@ proptest! {
         let nb = 3;
         let mut sys = random_spd_blocks(&mut rng, n, nb, 0.3, 1.0);
         for (k, v) in sys.values[0].iter_mut().enumerate() {
-            let diag = sys.pattern.entry_rows()[k] == sys.pattern.col_idx()[k];
+            let diag = sys.pattern.entry_rows()[k] == sys.pattern.col_idx()[k] as usize;
             *v = if diag { [[5.0, 0.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 5.0]] } else { [[0.0; 3]; 3] };
         }
         let a = sys.bsr::<f64>();

@@ -254,7 +254,7 @@ proptest! {
         for b in 0..nb {
             for r in 0..n {
                 for kk in p.row_range(r) {
-                    let c = p.col_idx()[kk];
+                    let c = p.col_idx()[kk] as usize;
                     let kb = k.batch_values(b)[kk].m;
                     let want: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| {
                         beta * kb[i][j] + if r == c && i == j { alpha * m.get(r, 0, b) } else { 0.0 }
@@ -311,7 +311,7 @@ fn large_bsr_spmv() {
         for r in 0..n {
             let mut acc = [0.0; 3];
             for k in p.row_range(r) {
-                let c = p.col_idx()[k];
+                let c = p.col_idx()[k] as usize;
                 let m = a.batch_values(b)[k].m;
                 let xv = x.get(c, 0, b).to_array();
                 let xr = x.get(r, 0, b).to_array();

@@ -218,8 +218,9 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
     if tables.contains_key("B.3") {
         s.push_str(&markdown_table(
             "Table B.3: CSR SpMV, 5-point 2D Poisson matrix of a g x g grid, f32",
-            "bytes = values + column indices + row pointers + x + y; gpumat's indices are 8 bytes \
-             (usize), Eigen's 4 (int), each side's GB/s counts its own bytes.",
+            "bytes = values + column indices + row pointers + x + y, as each side stores them \
+             (gpumat: `SparsityPattern`'s index types; Eigen: 4-byte int); each side's GB/s counts \
+             its own bytes.",
             &rows("B.3"),
             &table_sparse::b3_columns(),
         ));

@@ -188,7 +188,7 @@ impl Assembler {
         let mut upper_pos = vec![u32::MAX; pattern.nnz()];
         for r in 0..n {
             for kk in pattern.row_range(r) {
-                if pattern.col_idx()[kk] >= r {
+                if pattern.col_idx()[kk] as usize >= r {
                     upper_pos[kk] = upper.len() as u32;
                     upper.push(kk as u32);
                 }
@@ -197,7 +197,7 @@ impl Assembler {
         let mut source = vec![(0u32, false); pattern.nnz()];
         for r in 0..n {
             for kk in pattern.row_range(r) {
-                let c = pattern.col_idx()[kk];
+                let c = pattern.col_idx()[kk] as usize;
                 source[kk] = if c >= r {
                     (upper_pos[kk], false)
                 } else {

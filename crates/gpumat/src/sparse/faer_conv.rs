@@ -64,7 +64,7 @@ impl<T: BlockScalar> SparseMatrix<T> {
         for br in 0..p.rows() {
             for _i in 0..bs {
                 for k in p.row_range(br) {
-                    let bc = p.col_idx()[k];
+                    let bc = p.col_idx()[k] as usize;
                     col_idx.extend((0..bs).map(|j| bc * bs + j));
                 }
                 row_ptr.push(col_idx.len());

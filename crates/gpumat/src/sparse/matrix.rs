@@ -131,7 +131,12 @@ impl<T: Scalar> SparseMatrix<T> {
         let mut m = Matrix::zeros(self.rows(), self.cols(), 1);
         for r in 0..self.rows() {
             for k in self.pattern.row_range(r) {
-                m.set(r, self.pattern.col_idx()[k], 0, self.values[b * self.nnz() + k]);
+                m.set(
+                    r,
+                    self.pattern.col_idx()[k] as usize,
+                    0,
+                    self.values[b * self.nnz() + k],
+                );
             }
         }
         m

@@ -9,7 +9,7 @@ pub struct SparsityPattern {
     rows: usize,
     cols: usize,
     row_ptr: Vec<usize>,
-    col_idx: Vec<usize>,
+    col_idx: Vec<u32>,
     transpose: OnceLock<TransposeMap>,
 }
 
@@ -48,6 +48,9 @@ impl SparsityPattern {
                 rows + 1
             ));
         }
+        if cols > u32::MAX as usize {
+            return bad(format!("{cols} columns: column indices are stored as u32"));
+        }
         if row_ptr[0] != 0 || row_ptr[rows] != col_idx.len() {
             return bad("row_ptr must start at 0 and end at the number of entries".into());
         }
@@ -73,7 +76,8 @@ impl SparsityPattern {
             rows,
             cols,
             row_ptr,
-            col_idx,
+            // checked above: every column < cols <= u32::MAX
+            col_idx: col_idx.into_iter().map(|c| c as u32).collect(),
             transpose: OnceLock::new(),
         }))
     }
@@ -122,7 +126,8 @@ impl SparsityPattern {
         &self.row_ptr
     }
     /// Column indices.
-    pub fn col_idx(&self) -> &[usize] {
+    /// (Stored as `u32`: half the index traffic of `usize` in every SpMV.)
+    pub fn col_idx(&self) -> &[u32] {
         &self.col_idx
     }
     /// The entry range of row `r`.
@@ -132,6 +137,7 @@ impl SparsityPattern {
     /// The entry index of `(r, c)`, if stored.
     pub fn find(&self, r: usize, c: usize) -> Option<usize> {
         let range = self.row_range(r);
+        let c = u32::try_from(c).ok()?;
         self.col_idx[range.clone()]
             .binary_search(&c)
             .ok()
@@ -154,7 +160,7 @@ impl SparsityPattern {
         self.transpose.get_or_init(|| {
             let mut col_ptr = vec![0usize; self.cols + 1];
             for &c in &self.col_idx {
-                col_ptr[c + 1] += 1;
+                col_ptr[c as usize + 1] += 1;
             }
             for c in 0..self.cols {
                 col_ptr[c + 1] += col_ptr[c];
@@ -164,7 +170,7 @@ impl SparsityPattern {
             let mut entry = vec![0; self.nnz()];
             for r in 0..self.rows {
                 for k in self.row_range(r) {
-                    let c = self.col_idx[k];
+                    let c = self.col_idx[k] as usize;
                     row_idx[next[c]] = r;
                     entry[next[c]] = k;
                     next[c] += 1;

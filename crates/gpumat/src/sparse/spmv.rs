@@ -21,7 +21,7 @@ use crate::scalar::{Scalar, ScalarMul};
 pub struct SpMV<'a, T: Scalar, E> {
     a: &'a SparseMatrix<T>,
     row_ptr: &'a [usize],
-    col_idx: &'a [usize],
+    col_idx: &'a [u32],
     /// the values of the batch every output batch reads when `A` has one batch, else all
     values: &'a [T],
     /// `nnz` when `A` is batched (batch `b` reads `values[b * nnz..]`), 0 when it broadcasts
@@ -90,7 +90,7 @@ where
             let cols = self.col_idx.get_unchecked(start..end);
             let vals = values.get_unchecked(start..end);
             for (&col, &v) in cols.iter().zip(vals) {
-                acc = acc.add(v.smul(self.x.at(col, c, b)));
+                acc = acc.add(v.smul(self.x.at(col as usize, c, b)));
             }
         }
         acc

@@ -57,7 +57,7 @@ impl<T: Scalar> SparseMatrix<T> {
             let r1 = (r0 + ROW_CHUNK).min(rows);
             for r in r0..r1 {
                 for k in pattern.row_range(r) {
-                    let c = pattern.col_idx()[k];
+                    let c = pattern.col_idx()[k] as usize;
                     // SAFETY: (r, c, b) is inside `out`, to which `e` broadcasts; `k` is an
                     // entry of `pattern`, and `by_entry` says every sparse leaf shares it.
                     vals[k - base] = unsafe {

@@ -165,7 +165,7 @@ fn spd_from_pairs(
         let mut v = vec![[[0.0; 3]; 3]; nnz];
         for r in 0..n {
             for k in pattern.row_range(r) {
-                let c = pattern.col_idx()[k];
+                let c = pattern.col_idx()[k] as usize;
                 if c > r {
                     let blk = rng.mat3(-1.0, 1.0);
                     v[k] = blk;
@@ -222,7 +222,7 @@ impl SpdBlocks {
         let mut entries = Vec::new();
         for r in 0..self.n {
             for k in p.row_range(r) {
-                let c = p.col_idx()[k];
+                let c = p.col_idx()[k] as usize;
                 for i in 0..3 {
                     for j in 0..3 {
                         entries.push((3 * r + i, 3 * c + j));
@@ -235,7 +235,7 @@ impl SpdBlocks {
         for (b, bv) in self.values.iter().enumerate() {
             for r in 0..self.n {
                 for k in p.row_range(r) {
-                    let c = p.col_idx()[k];
+                    let c = p.col_idx()[k] as usize;
                     for i in 0..3 {
                         for j in 0..3 {
                             let ks = sp.find(3 * r + i, 3 * c + j).expect("expanded entry");
@@ -252,7 +252,7 @@ impl SpdBlocks {
         let mut d = faer::Mat::<f64>::zeros(3 * self.n, 3 * self.n);
         for r in 0..self.n {
             for k in self.pattern.row_range(r) {
-                let c = self.pattern.col_idx()[k];
+                let c = self.pattern.col_idx()[k] as usize;
                 for i in 0..3 {
                     for j in 0..3 {
                         d[(3 * r + i, 3 * c + j)] = self.values[b][k][i][j];
