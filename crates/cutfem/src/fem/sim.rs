@@ -204,7 +204,6 @@ impl Simulation {
     pub fn step(&mut self) -> Result<StepInfo, Error> {
         let mut info = StepInfo::default();
         let (dt, theta) = (self.model.dt, self.model.theta);
-        let (a1, a2) = (self.model.damping_mass, self.model.damping_stiffness);
         let t0 = Instant::now();
         info.stiffness_s = self.assemble();
         info.assembly_s += t0.elapsed().as_secs_f64();
@@ -227,20 +226,19 @@ impl Simulation {
         info.collision_s = t1.elapsed().as_secs_f64();
 
         let t2 = Instant::now();
-        let cm = 1.0 / (theta * dt) + a1;
-        self.a.assign(
-            (self.mass.ex().cast::<Mat3<f64>>().as_diagonal() * cm + self.k.ex() * (a2 + theta * dt))
-                .sparse_view(self.assembler.pattern()),
+        newmark_system(
+            &self.model,
+            &self.mass,
+            &self.k,
+            &self.u,
+            &self.v,
+            &self.f,
+            &mut self.a,
+            &mut self.b,
         );
         if let Some(ground) = &self.model.ground {
             self.add_contact_stiffness(&contact, ground.normal, theta * dt);
         }
-        self.b.assign(
-            self.mass.ex().cwise_mul(self.u.ex()) * cm
-                + (&self.k * &self.u) * (a2 - (1.0 - theta) * dt)
-                + self.mass.ex().cwise_mul(self.v.ex()) * (1.0 / theta)
-                + self.f.ex() * dt,
-        );
         info.assembly_s += t2.elapsed().as_secs_f64();
 
         let t3 = Instant::now();
@@ -358,6 +356,33 @@ impl Simulation {
     pub fn max_displacement(&self) -> f64 {
         self.u.ex().cwise_squared_norm().max().sqrt()
     }
+}
+
+/// The Newmark-1 system with Rayleigh damping (module docs, eq. 2.6.2): `A` on `K`'s pattern
+/// and `b`, each one fused gpumat expression. Shared by the grid and the tet simulations.
+pub fn newmark_system(
+    model: &Model,
+    mass: &Matrix<f64>,
+    k: &SparseMatrix<Mat3<f64>>,
+    u: &Matrix<Vec3<f64>>,
+    v: &Matrix<Vec3<f64>>,
+    f: &Matrix<Vec3<f64>>,
+    a: &mut SparseMatrix<Mat3<f64>>,
+    b: &mut Matrix<Vec3<f64>>,
+) {
+    let (dt, theta) = (model.dt, model.theta);
+    let (a1, a2) = (model.damping_mass, model.damping_stiffness);
+    let cm = 1.0 / (theta * dt) + a1;
+    a.assign(
+        (mass.ex().cast::<Mat3<f64>>().as_diagonal() * cm + k.ex() * (a2 + theta * dt))
+            .sparse_view(k.pattern()),
+    );
+    b.assign(
+        mass.ex().cwise_mul(u.ex()) * cm
+            + (k * u) * (a2 - (1.0 - theta) * dt)
+            + mass.ex().cwise_mul(v.ex()) * (1.0 / theta)
+            + f.ex() * dt,
+    );
 }
 
 /// Solves `A x = b` by block-Jacobi CG from the given `x`, falling back to Cholesky.

@@ -8,7 +8,7 @@ use crate::fem::collision::{softmin0, softmin0_derivative, ContactScheme};
 use crate::fem::element::POLAR_ITERATIONS;
 use crate::fem::grid::{Grid, INACTIVE};
 use crate::fem::model::Model;
-use crate::fem::sim::{solve, SolverSettings, StepInfo};
+use crate::fem::sim::{newmark_system, solve, SolverSettings, StepInfo};
 use gpumat::{Mat3, Matrix, SparseMatrix, Vec3};
 use std::time::Instant;
 
@@ -158,18 +158,15 @@ impl TetSimulation {
 
     /// The Newmark matrix and right-hand side from `self.k`, `self.f` and the state.
     fn assemble_system(&mut self) {
-        let (dt, theta) = (self.model.dt, self.model.theta);
-        let (a1, a2) = (self.model.damping_mass, self.model.damping_stiffness);
-        let cm = 1.0 / (theta * dt) + a1;
-        self.a.assign(
-            (self.mass.ex().cast::<Mat3<f64>>().as_diagonal() * cm + self.k.ex() * (a2 + theta * dt))
-                .sparse_view(self.assembler.pattern()),
-        );
-        self.b.assign(
-            self.mass.ex().cwise_mul(self.u.ex()) * cm
-                + (&self.k * &self.u) * (a2 - (1.0 - theta) * dt)
-                + self.mass.ex().cwise_mul(self.v.ex()) * (1.0 / theta)
-                + self.f.ex() * dt,
+        newmark_system(
+            &self.model,
+            &self.mass,
+            &self.k,
+            &self.u,
+            &self.v,
+            &self.f,
+            &mut self.a,
+            &mut self.b,
         );
     }
 
