@@ -170,17 +170,12 @@ impl Simulation {
         }
     }
 
-    /// Stiffness values and elastic forces for the current state: `K` (rotated when
-    /// corotation is on, with Nitsche terms) into `self.k`, body + corotation forces into
-    /// `self.f`.
-    fn assemble(&mut self) -> f64 {
-        let t = Instant::now();
+    /// Writes the stiffness values (rotated when `corotation`, with Nitsche terms) into
+    /// `self.k`; returns the rotations used and the element blocks (for the corotation forces).
+    fn assemble_stiffness(&mut self, corotation: bool) -> (Option<Vec<Mat3<f64>>>, ElementBlocks) {
         let m = self.material();
         let blocks = self.blocks();
-        let rot = self
-            .model
-            .corotation
-            .then(|| self.assembler.rotations(&self.grid, &self.u, POLAR_ITERATIONS));
+        let rot = corotation.then(|| self.assembler.rotations(&self.grid, &self.u, POLAR_ITERATIONS));
         self.assembler.assemble_stiffness(
             &self.grid,
             &m,
@@ -189,9 +184,17 @@ impl Simulation {
             &self.dirichlet,
             &mut self.k,
         );
+        (rot, blocks)
+    }
+
+    /// Stiffness values and elastic forces for the current state: `K` into `self.k`, body +
+    /// corotation forces into `self.f`. Returns the seconds spent on rotations and stiffness.
+    fn assemble(&mut self) -> f64 {
+        let t = Instant::now();
+        let (rot, blocks) = self.assemble_stiffness(self.model.corotation);
         let stiffness_s = t.elapsed().as_secs_f64();
-        let g = self.model.gravity;
-        self.f.assign(self.mass.ex().cwise_mul(gpumat::scalar(g)));
+        self.f
+            .assign(self.mass.ex().cwise_mul(gpumat::scalar(self.model.gravity)));
         if let Some(r) = &rot {
             self.assembler
                 .add_corotation_forces(&self.grid, &blocks, r, &mut self.f);
@@ -280,13 +283,10 @@ impl Simulation {
     /// The static equilibrium `K u = f` of plain linear elasticity (no corotation, no ground,
     /// no inertia) under the body forces, with Nitsche Dirichlet terms.
     pub fn solve_static(&mut self) -> Result<StepInfo, Error> {
-        let m = self.material();
-        let blocks = self.blocks();
-        self.assembler
-            .assemble_stiffness(&self.grid, &m, &blocks, None, &self.dirichlet, &mut self.k);
+        let (_, blocks) = self.assemble_stiffness(false);
         self.blocks = Some(blocks);
-        let g = self.model.gravity;
-        self.f.assign(self.mass.ex().cwise_mul(gpumat::scalar(g)));
+        self.f
+            .assign(self.mass.ex().cwise_mul(gpumat::scalar(self.model.gravity)));
         let mut x = Matrix::zeros(self.grid.dofs(), 1, 1);
         let t = Instant::now();
         let (iterations, residual, fallback) = solve(&self.k, &self.f, &mut x, &self.solver)?;
@@ -303,20 +303,7 @@ impl Simulation {
     /// The elastic force `-K u` (corotated when the model says so, with the corotation force
     /// `-R K (R^T x - x)`), without body or contact forces. Assembles the stiffness.
     pub fn elastic_force(&mut self) -> Matrix<Vec3<f64>> {
-        let m = self.material();
-        let blocks = self.blocks();
-        let rot = self
-            .model
-            .corotation
-            .then(|| self.assembler.rotations(&self.grid, &self.u, POLAR_ITERATIONS));
-        self.assembler.assemble_stiffness(
-            &self.grid,
-            &m,
-            &blocks,
-            rot.as_deref(),
-            &self.dirichlet,
-            &mut self.k,
-        );
+        let (rot, blocks) = self.assemble_stiffness(self.model.corotation);
         let mut f = Matrix::eval(-(&self.k * &self.u));
         if let Some(r) = &rot {
             self.assembler
