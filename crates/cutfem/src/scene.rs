@@ -207,6 +207,33 @@ pub struct NumericsSection {
     /// thesis' Poisson diffusion) or "linear" (reproduces linear fields exactly)
     #[serde(default)]
     pub diffusion: DiffusionName,
+    /// CG preconditioner of the step's linear solve: "block_jacobi" (the thesis'), "block_ic0"
+    /// or "rest_cholesky" ([`crate::fem::solver`])
+    #[serde(default)]
+    pub preconditioner: PreconditionerName,
+}
+
+/// `[numerics].preconditioner`
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum PreconditionerName {
+    /// inverse 3x3 diagonal blocks (the thesis')
+    #[default]
+    BlockJacobi,
+    /// relaxed modified block incomplete Cholesky on the matrix's pattern, every step
+    BlockIc0,
+    /// sparse Cholesky factor of the rest state, reused while it works
+    RestCholesky,
+}
+
+impl From<PreconditionerName> for crate::fem::Preconditioner {
+    fn from(p: PreconditionerName) -> Self {
+        match p {
+            PreconditionerName::BlockJacobi => Self::BlockJacobi,
+            PreconditionerName::BlockIc0 => Self::BlockIc0,
+            PreconditionerName::RestCholesky => Self::RestCholesky,
+        }
+    }
 }
 
 /// `[numerics].diffusion`
@@ -235,6 +262,7 @@ impl Default for NumericsSection {
             cg_tolerance: cg_tol(),
             cg_max_iterations: cg_max(),
             diffusion: DiffusionName::default(),
+            preconditioner: PreconditionerName::default(),
         }
     }
 }

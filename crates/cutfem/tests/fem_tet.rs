@@ -351,17 +351,21 @@ fn grid_and_tet_cuboid_agree() {
 }
 
 /// A slender bar 1.0 x 0.2 x 0.2: the linear tetrahedra are stiffer in bending than the grid's
-/// trilinear cells; at 4 cells across the tip deflections differ by about 7% (static) and 9%
-/// (trajectory), at 8 cells across by about 3.5% and 5%: the two converge together.
+/// trilinear cells; at 4 cells across the tip deflections differ by about 3.1% (static) and
+/// 6.5% (trajectory), at 8 cells across by about 2.6% and 4%: the two converge together.
+/// (With the linear cut-cell integrals, which lose about 8% of the bar's volume at its edges at
+/// 4 cells across, the differences were 6.7% / 9.4% and 3.5% / 5.2%; the refined integrals,
+/// `cutcell::refined_cell_integrals`, lose 0.9%, so most of the coarse static difference was
+/// that geometric error and the static difference now falls by a factor 0.82 rather than 0.5.)
 #[test]
 fn grid_and_tet_slender_bar_converge_together() {
     let coarse = Comparison::run([0.5, 0.0, 0.0], [1.0, 0.2, 0.2], 0.05, 2.0e4, 30);
     coarse.print("bar h = 1/20");
     let fine = Comparison::run([0.5, 0.0, 0.0], [1.0, 0.2, 0.2], 0.025, 2.0e4, 30);
     fine.print("bar h = 1/40");
-    assert!(coarse.trajectory_error() < 0.15 && coarse.static_error() < 0.1);
+    assert!(coarse.trajectory_error() < 0.15 && coarse.static_error() < 0.05);
     assert!(fine.trajectory_error() < 0.7 * coarse.trajectory_error());
-    assert!(fine.static_error() < 0.7 * coarse.static_error());
+    assert!(fine.static_error() < 0.9 * coarse.static_error() && fine.static_error() < 0.03);
 }
 
 /// Ground contact at the surface nodes: a cube dropped on the ground comes to rest on it,

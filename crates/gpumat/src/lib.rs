@@ -47,7 +47,7 @@ pub use matrix::{Matrix, Shape};
 pub use product::{matmul, matmul_into};
 pub use scalar::{CastFrom, Real, Scalar, ScalarMul};
 pub use solve::{
-    cg, BlockJacobi, CgError, CgInfo, CgParams, IdentityPreconditioner, Jacobi, LinearOperator,
-    Preconditioner, SparseCholesky,
+    cg, nested_dissection, BlockIc0, BlockJacobi, CgError, CgInfo, CgParams, Ic0Params,
+    IdentityPreconditioner, Jacobi, LinearOperator, Preconditioner, SparseCholesky,
 };
 pub use sparse::{BlockScalar, SparseMatrix, SparsityPattern};

@@ -3,6 +3,12 @@
 //! Thin by design: parse, call the library, print, draw. Every error becomes one line on
 //! stderr and a non-zero exit code; `--json` prints exactly one JSON object on stdout.
 
+mod fit;
+mod fit_report;
+mod gradcheck;
+mod observe;
+#[allow(dead_code)]
+mod plot;
 mod progress;
 mod simulate;
 
@@ -22,6 +28,14 @@ enum Command {
     /// Forward simulation: per-frame surface meshes (DIR/frames/NNNN.ply), a picture and a
     /// JSON summary.
     Simulate(simulate::Args),
+    /// Virtual RGB-D cameras look at the simulated body; writes the points they see as an
+    /// observation CSV (frame,x,y,z,camera).
+    Observe(observe::Args),
+    /// Reconstructs parameters from observed points with adjoint gradients; writes a report
+    /// (fit.json, fit.log, plots) to DIR.
+    Fit(fit::Args),
+    /// Adjoint gradient against central finite differences for every fitted parameter.
+    Gradcheck(gradcheck::Args),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +49,9 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Simulate(a) => simulate::run(a),
+        Command::Observe(a) => observe::run(a),
+        Command::Fit(a) => fit::run(a),
+        Command::Gradcheck(a) => gradcheck::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -99,6 +99,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     sim.solver.cg.tolerance = scene.numerics.cg_tolerance;
     sim.solver.cg.max_iterations = scene.numerics.cg_max_iterations;
+    sim.solver.preconditioner = scene.numerics.preconditioner.into();
     let surface = extract_surface(&sim.grid.sdf);
     let extension = match scene.numerics.diffusion {
         DiffusionName::Harmonic => Extension::Harmonic,
@@ -203,7 +204,10 @@ pub fn run(a: Args) -> Result<(), String> {
             "assembly": assembly, "solve": solve, "collision": collision, "advection": advection,
             "total": t_total.elapsed().as_secs_f64()
         },
-        "solver": {"iterations": iterations, "max_residual": max_residual, "fallbacks": fallbacks},
+        "solver": {
+            "iterations": iterations, "max_residual": max_residual, "fallbacks": fallbacks,
+            "preconditioner": sim.solver.preconditioner.name(), "factorizations": sim.factorizations()
+        },
         "final": {"max_displacement": sim.max_displacement()},
         "files": {
             "frames": frames_dir.display().to_string(),

@@ -65,6 +65,8 @@ fn simulate_writes_frames_picture_and_json() {
     assert_eq!(v["steps"], 4);
     assert!(v["nodes"]["active"].as_u64().unwrap() > 0);
     assert_eq!(v["solver"]["iterations"].as_array().unwrap().len(), 4);
+    assert_eq!(v["solver"]["preconditioner"], "block_jacobi");
+    assert_eq!(v["solver"]["factorizations"], 0);
     assert!(v["final"]["max_displacement"].as_f64().unwrap() > 0.0);
     for f in 0..=4 {
         assert!(out.join(format!("frames/{f:04}.ply")).exists(), "frame {f}");
@@ -119,6 +121,41 @@ fn bad_parameters_are_one_line_errors() {
         ),
         "magic",
     );
+    expect_error(
+        &(SMALL.to_string() + "[numerics]\npreconditioner = \"multigrid\"\n"),
+        "unknown variant `multigrid`, expected one of `block_jacobi`, `block_ic0`, `rest_cholesky`",
+    );
+}
+
+/// `[numerics] preconditioner` picks the CG preconditioner; the summary names it and counts
+/// its factorizations (one rest-state Cholesky factor serves every step of this short run).
+#[test]
+fn simulate_with_other_preconditioners() {
+    for (name, factorizations) in [("block_ic0", 4), ("rest_cholesky", 1)] {
+        let dir = tmp(name);
+        let text = format!("{SMALL}[numerics]\npreconditioner = \"{name}\"\n");
+        let scene = write(&dir, "small.toml", &text);
+        let out = dir.join("out");
+        let o = softbody()
+            .args([
+                "simulate",
+                scene.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--json",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(v["solver"]["preconditioner"], name);
+        assert_eq!(v["solver"]["factorizations"], factorizations, "{name}");
+        assert_eq!(v["solver"]["fallbacks"], 0);
+    }
 }
 
 #[test]

@@ -234,7 +234,10 @@ impl Assembler {
 
     /// Writes the stiffness values into `k` (whose pattern must be [`Assembler::pattern`]).
     /// `rotations[e]` is the corotation of cell `e` (or `None` for plain linear elasticity);
-    /// `dirichlet[e]` marks cells with Nitsche boundary terms.
+    /// `dirichlet[e]` marks cells with Nitsche boundary terms; `scale[e]` multiplies cell `e`'s
+    /// Young's modulus (a heterogeneous material, `None`: homogeneous). The Nitsche traction
+    /// terms scale with it, the penalty does not.
+    #[allow(clippy::too_many_arguments)]
     pub fn assemble_stiffness(
         &self,
         grid: &Grid,
@@ -242,6 +245,7 @@ impl Assembler {
         blocks: &ElementBlocks,
         rotations: Option<&[Mat3<f64>]>,
         dirichlet: &[bool],
+        scale: Option<&[f64]>,
         k: &mut SparseMatrix<Mat3<f64>>,
     ) {
         assert!(
@@ -255,6 +259,10 @@ impl Assembler {
             for &(e, ij) in &self.contrib[self.contrib_ptr[kk] as usize..self.contrib_ptr[kk + 1] as usize] {
                 let (e, i, j) = (e as usize, (ij / 8) as usize, (ij % 8) as usize);
                 let mut b = blocks.get(e, i, j);
+                let se = scale.map_or(1.0, |s| s[e]);
+                if se != 1.0 {
+                    b = b * se;
+                }
                 if let Some(r) = rotations {
                     b = rotate_block(&r[e], &b);
                 }
@@ -263,7 +271,7 @@ impl Assembler {
                     let n = Vec3::from_array(ci.normal);
                     b = b + self
                         .tables
-                        .nitsche_block(&ci.boundary, n, i, j, m.lambda, m.mu, m.eta);
+                        .nitsche_block(&ci.boundary, n, i, j, m.lambda * se, m.mu * se, m.eta);
                 }
                 acc = acc + b;
             }
@@ -306,6 +314,7 @@ impl Assembler {
         grid: &Grid,
         blocks: &ElementBlocks,
         rotations: &[Mat3<f64>],
+        scale: Option<&[f64]>,
         f: &mut Matrix<Vec3<f64>>,
     ) {
         let x = corner_offsets(grid.h());
@@ -324,7 +333,7 @@ impl Assembler {
                     for j in 0..8 {
                         s = s + k[i][j] * d[j];
                     }
-                    -(r * s)
+                    -(r * s) * scale.map_or(1.0, |s| s[e])
                 })
             })
             .collect();

@@ -4,7 +4,7 @@
 //! corner SDF values, the partial integrals `w_v(e,i)`, `w_b(e,i)` and the normal (sec. 4.2),
 //! and the degree of freedom of each corner.
 
-use crate::cutcell::{cell_active, cell_integrals, snap, CellIntegrals};
+use crate::cutcell::{cell_active, refined_cell_integrals, snap, CellIntegrals};
 use crate::error::Error;
 use crate::sdf::SdfGrid;
 use gpumat::Vec3;
@@ -23,7 +23,8 @@ pub struct Cell {
     /// SDF values at the corners, snapped ([`crate::cutcell::snap`]: `|phi| < 1e-5 h` is 0,
     /// and 0 counts as outside)
     pub phi: [f64; 8],
-    /// partial integrals
+    /// partial integrals ([`crate::cutcell::refined_cell_integrals`]: the tricubic refinement of
+    /// the SDF on the cell's 4x4x4 node stencil)
     pub integrals: CellIntegrals,
 }
 
@@ -151,7 +152,7 @@ impl Grid {
                     coord: [i, j, k],
                     dofs,
                     phi,
-                    integrals: cell_integrals(&phi, h),
+                    integrals: refined_cell_integrals(&sdf, [i, j, k]),
                 }
             })
             .collect();

@@ -7,10 +7,12 @@ pub mod element;
 pub mod grid;
 pub mod model;
 pub mod sim;
+pub mod solver;
 pub mod tet;
 
 pub use assembly::{Assembler, Material};
 pub use collision::Ground;
 pub use grid::{Cell, Grid};
 pub use model::{Aabb, Model};
-pub use sim::{Simulation, SolverSettings, StepInfo};
+pub use sim::{Simulation, StepInfo};
+pub use solver::{LinearSolver, Preconditioner, SolveInfo, SolverSettings};

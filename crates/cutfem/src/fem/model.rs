@@ -48,6 +48,9 @@ pub struct Model {
     pub initial_velocity: Vec3<f64>,
     /// initial angular velocity (about the center of mass)
     pub initial_angular_velocity: Vec3<f64>,
+    /// per active cell, a factor on Young's modulus (the `stiffness_field` effect; `None`:
+    /// homogeneous)
+    pub stiffness_scale: Option<std::sync::Arc<[f64]>>,
     /// time step
     pub dt: f64,
     /// Newmark-1 theta in [0.5, 1)
@@ -69,6 +72,7 @@ impl Default for Model {
             nitsche_eta: 1e8,
             initial_velocity: Vec3::default(),
             initial_angular_velocity: Vec3::default(),
+            stiffness_scale: None,
             dt: 0.01,
             theta: 0.6,
         }
@@ -137,6 +141,14 @@ impl Model {
             }
             if !(g.softness > 0.0 && g.softness.is_finite()) {
                 return bad("ground.softness", format!("must be positive, got {}", g.softness));
+            }
+        }
+        if let Some(s) = &self.stiffness_scale {
+            if let Some(v) = s.iter().find(|v| !(**v > 0.0 && v.is_finite())) {
+                return bad(
+                    "model.stiffness_field",
+                    format!("Young's modulus factors must be positive, got {v}"),
+                );
             }
         }
         for (i, b) in self.dirichlet.iter().enumerate() {

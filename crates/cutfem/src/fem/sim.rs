@@ -10,42 +10,21 @@
 //!
 //! (The thesis prints `+ (1-theta) dt K` in `b`; deriving the theta-scheme for
 //! `M v' + D v + K u = f`, `u' = v` gives the minus sign used here.) `A` and `b` are each one
-//! fused gpumat expression; `A u' = b` is solved by Jacobi-preconditioned CG warm-started at
-//! `u + dt v` (4.4.18), falling back to a sparse Cholesky factorization when CG fails.
+//! fused gpumat expression; `A u' = b` is solved by preconditioned CG warm-started at
+//! `u + dt v` (4.4.18), falling back to a sparse Cholesky factorization when CG fails; the
+//! preconditioner (block-Jacobi, block IC(0) or a reused rest-state Cholesky factor) is chosen
+//! in [`SolverSettings`] (see [`super::solver`]).
 
 use super::assembly::{Assembler, ElementBlocks, Material};
 use super::collision::{add_ground_forces, crossings, Crossing};
 use super::element::POLAR_ITERATIONS;
 use super::grid::Grid;
 use super::model::Model;
+use super::solver::LinearSolver;
+pub use super::solver::{solve, Preconditioner, SolverSettings};
 use crate::error::Error;
-use gpumat::{cg, BlockJacobi, CgParams, Mat3, Matrix, SparseCholesky, SparseMatrix, Vec3};
+use gpumat::{Mat3, Matrix, SparseMatrix, Vec3};
 use std::time::Instant;
-
-/// Linear-solver settings of a simulation.
-#[derive(Clone, Copy, Debug)]
-pub struct SolverSettings {
-    /// CG parameters
-    pub cg: CgParams<f64>,
-    /// fall back to a direct solve when CG fails (else the error is returned)
-    pub fallback: bool,
-    /// solve directly (sparse Cholesky) instead of CG
-    pub direct: bool,
-}
-
-impl Default for SolverSettings {
-    fn default() -> Self {
-        Self {
-            cg: CgParams {
-                max_iterations: 2000,
-                tolerance: 1e-8,
-                absolute_tolerance: 0.0,
-            },
-            fallback: true,
-            direct: false,
-        }
-    }
-}
 
 /// What one step did.
 #[derive(Clone, Debug, Default)]
@@ -56,6 +35,10 @@ pub struct StepInfo {
     pub residual: f64,
     /// true when CG failed and the direct solver was used
     pub fallback: bool,
+    /// numeric factorizations of the preconditioner (IC(0), Cholesky) or direct solver
+    pub factorizations: usize,
+    /// the part of `solve_s` spent in those factorizations
+    pub factor_s: f64,
     /// crossings in contact with the ground
     pub contacts: usize,
     /// seconds in assembly (rotations, stiffness, corotation forces, A and b)
@@ -65,7 +48,7 @@ pub struct StepInfo {
     pub stiffness_s: f64,
     /// seconds in collision forces
     pub collision_s: f64,
-    /// seconds in the linear solve
+    /// seconds in the linear solve (factorizations included)
     pub solve_s: f64,
 }
 
@@ -95,6 +78,9 @@ pub struct Simulation {
     k: SparseMatrix<Mat3<f64>>,
     a: SparseMatrix<Mat3<f64>>,
     blocks: Option<ElementBlocks>,
+    linear: LinearSolver,
+    rotations: Option<Vec<Mat3<f64>>>,
+    contact: Vec<(Crossing, f64)>,
     f: Matrix<Vec3<f64>>,
     b: Matrix<Vec3<f64>>,
 }
@@ -104,6 +90,15 @@ impl Simulation {
     /// with the model's initial velocity.
     pub fn new(grid: Grid, model: Model) -> Result<Self, Error> {
         model.validate()?;
+        if let Some(s) = &model.stiffness_scale {
+            if s.len() != grid.cells.len() {
+                return Err(Error::Invalid(format!(
+                    "model.stiffness_scale: {} values for {} active cells",
+                    s.len(),
+                    grid.cells.len()
+                )));
+            }
+        }
         let assembler = Assembler::new(&grid);
         let mass = assembler.lumped_mass(&grid, model.density);
         let dirichlet = dirichlet_cells(&grid, &model)?;
@@ -111,6 +106,7 @@ impl Simulation {
         let n = grid.dofs();
         let k = SparseMatrix::zeros(assembler.pattern().clone(), 1);
         let a = SparseMatrix::zeros(assembler.pattern().clone(), 1);
+        let linear = LinearSolver::new(Some(&grid.positions));
         let mut sim = Self {
             u: Matrix::zeros(n, 1, 1),
             v: Matrix::zeros(n, 1, 1),
@@ -127,20 +123,65 @@ impl Simulation {
             k,
             a,
             blocks: None,
+            linear,
+            rotations: None,
+            contact: Vec::new(),
         };
         sim.v = sim.initial_velocity();
         Ok(sim)
     }
 
-    /// The initial velocity field `v0 + omega x (x - c)` with `c` the center of mass.
-    pub fn initial_velocity(&self) -> Matrix<Vec3<f64>> {
+    /// Replaces the model and returns to the reference state (frame 0) with the new model's
+    /// initial velocity, keeping the grid, the pattern and the gather maps (pattern once,
+    /// values every step). Used by the fitting loop for each parameter set.
+    pub fn reset(&mut self, model: Model) -> Result<(), Error> {
+        self.set_model(model)?;
+        let n = self.grid.dofs();
+        self.u = Matrix::zeros(n, 1, 1);
+        self.v = self.initial_velocity();
+        self.steps = 0;
+        self.rotations = None;
+        self.contact.clear();
+        Ok(())
+    }
+
+    /// Replaces the model, keeping the state `(u, v)` (the mass and the Nitsche cells follow
+    /// the new density and Dirichlet boxes).
+    pub fn set_model(&mut self, model: Model) -> Result<(), Error> {
+        model.validate()?;
+        if let Some(s) = &model.stiffness_scale {
+            if s.len() != self.grid.cells.len() {
+                return Err(Error::Invalid(format!(
+                    "model.stiffness_scale: {} values for {} active cells",
+                    s.len(),
+                    self.grid.cells.len()
+                )));
+            }
+        }
+        if model.dirichlet != self.model.dirichlet {
+            self.dirichlet = dirichlet_cells(&self.grid, &model)?;
+        }
+        if model.density != self.model.density {
+            self.mass = self.assembler.lumped_mass(&self.grid, model.density);
+        }
+        self.model = model;
+        Ok(())
+    }
+
+    /// The center of mass of the reference configuration.
+    pub fn center_of_mass(&self) -> Vec3<f64> {
         let m = self.mass.as_slice();
         let total: f64 = m.iter().sum();
         let mut c = Vec3::default();
         for (p, &mi) in self.grid.positions.iter().zip(m) {
             c = c + *p * mi;
         }
-        let c = c * (1.0 / total);
+        c * (1.0 / total)
+    }
+
+    /// The initial velocity field `v0 + omega x (x - c)` with `c` the center of mass.
+    pub fn initial_velocity(&self) -> Matrix<Vec3<f64>> {
+        let c = self.center_of_mass();
         let (v0, w) = (self.model.initial_velocity, self.model.initial_angular_velocity);
         Matrix::from_fn(self.grid.dofs(), 1, 1, |i, _, _| {
             v0 + w.cross(self.grid.positions[i] - c)
@@ -182,6 +223,7 @@ impl Simulation {
             &blocks,
             rot.as_deref(),
             &self.dirichlet,
+            self.model.stiffness_scale.as_deref(),
             &mut self.k,
         );
         (rot, blocks)
@@ -196,15 +238,49 @@ impl Simulation {
         self.f
             .assign(self.mass.ex().cwise_mul(gpumat::scalar(self.model.gravity)));
         if let Some(r) = &rot {
-            self.assembler
-                .add_corotation_forces(&self.grid, &blocks, r, &mut self.f);
+            self.assembler.add_corotation_forces(
+                &self.grid,
+                &blocks,
+                r,
+                self.model.stiffness_scale.as_deref(),
+                &mut self.f,
+            );
         }
         self.blocks = Some(blocks);
+        self.rotations = rot;
         stiffness_s
     }
 
-    /// Advances one time step.
+    /// Advances one time step: [`Simulation::assemble_system`], then the solve and the
+    /// velocity update.
     pub fn step(&mut self) -> Result<StepInfo, Error> {
+        let mut info = self.assemble_system();
+        let (dt, theta) = (self.model.dt, self.model.theta);
+
+        let t3 = Instant::now();
+        let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);
+        let si = self.linear.solve(&self.a, &self.b, &mut x, &self.solver)?;
+        info.iterations = si.iterations;
+        info.residual = si.residual;
+        info.fallback = si.fallback;
+        info.factorizations = si.factorizations;
+        info.factor_s = si.factor_s;
+        info.solve_s = t3.elapsed().as_secs_f64();
+
+        // v' = (u' - u)/(theta dt) - (1-theta)/theta v, then u = u'
+        let c = 1.0 / (theta * dt);
+        self.v
+            .assign_with(|v| (x.ex() - self.u.ex()) * c - v * ((1.0 - theta) / theta));
+        self.u = x;
+        self.steps += 1;
+        Ok(info)
+    }
+
+    /// The stages of a step before the solve, for the current state `(u, v)`: rotations and
+    /// stiffness (4.4.1), corotation and body forces, ground forces (2.8), then the Newmark
+    /// matrix `A` and right-hand side `b` (2.6.2). The adjoint pass calls it to recompute `A`
+    /// at a stored state instead of storing it (thesis sec. 5.7).
+    pub fn assemble_system(&mut self) -> StepInfo {
         let mut info = StepInfo::default();
         let (dt, theta) = (self.model.dt, self.model.theta);
         let t0 = Instant::now();
@@ -212,7 +288,8 @@ impl Simulation {
         info.assembly_s += t0.elapsed().as_secs_f64();
 
         let t1 = Instant::now();
-        let mut contact = Vec::new();
+        let mut contact = std::mem::take(&mut self.contact);
+        contact.clear();
         if let Some(ground) = &self.model.ground {
             info.contacts = add_ground_forces(
                 &self.grid,
@@ -242,23 +319,9 @@ impl Simulation {
         if let Some(ground) = &self.model.ground {
             self.add_contact_stiffness(&contact, ground.normal, theta * dt);
         }
+        self.contact = contact;
         info.assembly_s += t2.elapsed().as_secs_f64();
-
-        let t3 = Instant::now();
-        let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);
-        let (iterations, residual, fallback) = solve(&self.a, &self.b, &mut x, &self.solver)?;
-        info.iterations = iterations;
-        info.residual = residual;
-        info.fallback = fallback;
-        info.solve_s = t3.elapsed().as_secs_f64();
-
-        // v' = (u' - u)/(theta dt) - (1-theta)/theta v, then u = u'
-        let c = 1.0 / (theta * dt);
-        self.v
-            .assign_with(|v| (x.ex() - self.u.ex()) * c - v * ((1.0 - theta) / theta));
-        self.u = x;
-        self.steps += 1;
-        Ok(info)
+        info
     }
 
     /// Adds `scale * K_c` (the linearized contact stiffness of the crossings in `contact`, as
@@ -306,11 +369,64 @@ impl Simulation {
         let (rot, blocks) = self.assemble_stiffness(self.model.corotation);
         let mut f = Matrix::eval(-(&self.k * &self.u));
         if let Some(r) = &rot {
-            self.assembler
-                .add_corotation_forces(&self.grid, &blocks, r, &mut f);
+            self.assembler.add_corotation_forces(
+                &self.grid,
+                &blocks,
+                r,
+                self.model.stiffness_scale.as_deref(),
+                &mut f,
+            );
         }
         self.blocks = Some(blocks);
         f
+    }
+
+    /// Solves `A x = rhs` with the Newmark matrix of the last [`Simulation::assemble_system`]
+    /// and the simulation's solver settings, starting from `x` (the adjoint solve of the
+    /// backward pass: `A` is symmetric). Returns `(iterations, relative residual, fallback)`.
+    pub fn solve_newmark(
+        &self,
+        rhs: &Matrix<Vec3<f64>>,
+        x: &mut Matrix<Vec3<f64>>,
+    ) -> Result<(usize, f64, bool), Error> {
+        solve(&self.a, rhs, x, &self.solver)
+    }
+
+    /// The per-cell rotations of the last assembly (`None` without corotation).
+    pub fn rotations(&self) -> Option<&[Mat3<f64>]> {
+        self.rotations.as_deref()
+    }
+
+    /// The crossings in contact at the last assembly with their spring slopes
+    /// `k softmin'(d)` (implicit contact scheme only).
+    pub fn contact(&self) -> &[(Crossing, f64)] {
+        &self.contact
+    }
+
+    /// The unrotated element blocks of the last assembly.
+    pub fn element_blocks(&self) -> Option<&ElementBlocks> {
+        self.blocks.as_ref()
+    }
+
+    /// The force vector `f` of the last assembly (body, corotation and contact forces).
+    pub fn force(&self) -> &Matrix<Vec3<f64>> {
+        &self.f
+    }
+
+    /// The Newmark right-hand side `b` of the last assembly.
+    pub fn newmark_rhs(&self) -> &Matrix<Vec3<f64>> {
+        &self.b
+    }
+
+    /// Numeric factorizations of the linear solver's preconditioner so far.
+    pub fn factorizations(&self) -> usize {
+        self.linear.factorizations()
+    }
+
+    /// Drops a reused preconditioner factor (`rest_cholesky`): the next step factors afresh.
+    /// The factor also follows changes of the model by itself, through the refactor rule.
+    pub fn reset_preconditioner(&mut self) {
+        self.linear.reset();
     }
 
     /// The stiffness matrix of the last assembly.
@@ -370,38 +486,6 @@ pub fn newmark_system(
             + mass.ex().cwise_mul(v.ex()) * (1.0 / theta)
             + f.ex() * dt,
     );
-}
-
-/// Solves `A x = b` by block-Jacobi CG from the given `x`, falling back to Cholesky.
-/// Returns `(iterations, relative residual, fallback used)`.
-pub fn solve(
-    a: &SparseMatrix<Mat3<f64>>,
-    b: &Matrix<Vec3<f64>>,
-    x: &mut Matrix<Vec3<f64>>,
-    settings: &SolverSettings,
-) -> Result<(usize, f64, bool), Error> {
-    let direct = |x: &mut Matrix<Vec3<f64>>| -> Result<f64, Error> {
-        let chol = SparseCholesky::new(a)?;
-        *x = chol.solve(b);
-        let mut r = Matrix::zeros_shape(b.shape());
-        r.assign(b - a * &*x);
-        Ok(r.ex().norm() / b.ex().norm().max(f64::MIN_POSITIVE))
-    };
-    if settings.direct {
-        return Ok((0, direct(x)?, false));
-    }
-    let pre = BlockJacobi::new(a)?;
-    match cg(a, b, x, &pre, &settings.cg) {
-        Ok(info) => Ok((info.max_iterations(), info.max_residual(), false)),
-        Err(e) if settings.fallback => {
-            let iterations = match &e {
-                gpumat::CgError::NoConvergence { info } => info.max_iterations(),
-                _ => settings.cg.max_iterations,
-            };
-            Ok((iterations, direct(x)?, true))
-        }
-        Err(e) => Err(Error::Invalid(format!("linear solve: {e}"))),
-    }
 }
 
 /// Cells with Nitsche boundary terms: cut cells whose center lies in a Dirichlet box. Errors

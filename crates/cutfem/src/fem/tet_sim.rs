@@ -9,6 +9,7 @@ use crate::fem::element::POLAR_ITERATIONS;
 use crate::fem::grid::{Grid, INACTIVE};
 use crate::fem::model::Model;
 use crate::fem::sim::{newmark_system, solve, SolverSettings, StepInfo};
+use crate::fem::solver::LinearSolver;
 use gpumat::{Mat3, Matrix, SparseMatrix, Vec3};
 use std::time::Instant;
 
@@ -58,6 +59,7 @@ pub struct TetSimulation {
     a: SparseMatrix<Mat3<f64>>,
     f: Matrix<Vec3<f64>>,
     b: Matrix<Vec3<f64>>,
+    linear: LinearSolver,
 }
 
 impl TetSimulation {
@@ -77,6 +79,12 @@ impl TetSimulation {
         let n = mesh.dofs();
         let k = SparseMatrix::zeros(assembler.pattern().clone(), 1);
         let a = SparseMatrix::zeros(assembler.pattern().clone(), 1);
+        let free: Vec<Vec3<f64>> = mesh
+            .free_nodes
+            .iter()
+            .map(|&n| mesh.positions[n as usize])
+            .collect();
+        let linear = LinearSolver::new(Some(&free));
         let mut sim = Self {
             u: Matrix::zeros(n, 1, 1),
             v: Matrix::zeros(n, 1, 1),
@@ -91,6 +99,7 @@ impl TetSimulation {
             solver: SolverSettings::default(),
             k,
             a,
+            linear,
         };
         sim.v = sim.initial_velocity();
         Ok(sim)
@@ -252,10 +261,12 @@ impl TetSimulation {
 
         let t3 = Instant::now();
         let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);
-        let (iterations, residual, fallback) = solve(&self.a, &self.b, &mut x, &self.solver)?;
-        info.iterations = iterations;
-        info.residual = residual;
-        info.fallback = fallback;
+        let si = self.linear.solve(&self.a, &self.b, &mut x, &self.solver)?;
+        info.iterations = si.iterations;
+        info.residual = si.residual;
+        info.fallback = si.fallback;
+        info.factorizations = si.factorizations;
+        info.factor_s = si.factor_s;
         info.solve_s = t3.elapsed().as_secs_f64();
 
         let c = 1.0 / (theta * dt);

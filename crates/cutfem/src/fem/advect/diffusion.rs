@@ -437,6 +437,59 @@ impl Diffusion {
         Ok((out, info))
     }
 
+    /// The adjoint (transpose) of [`Diffusion::diffuse`] (thesis sec. 5.5.2): for a gradient
+    /// `g` per slot, returns the gradient per active node. `diffuse` is the linear map
+    /// `u -> (u, L^{-1} C u)` with `C` the (negated) couplings to the active nodes, so its
+    /// transpose is `g -> g_active + C^T L^{-1} g_empty` (`L` symmetric): one batched CG solve.
+    pub fn diffuse_adjoint(&self, g: &[Vec3<f64>]) -> Result<Matrix<Vec3<f64>>, Error> {
+        if g.len() != self.len() {
+            return Err(Error::Invalid(format!(
+                "diffusion adjoint: {} gradients for {} slots",
+                g.len(),
+                self.len()
+            )));
+        }
+        let mut out = Matrix::from_fn(self.dofs, 1, 1, |d, _, _| g[d]);
+        let m = self.empty_count();
+        let Some(jacobi) = &self.jacobi else {
+            return Ok(out);
+        };
+        let ge = &g[self.dofs..];
+        let mut data = vec![0.0; 3 * m];
+        for (r, v) in ge.iter().enumerate() {
+            data[r] = v.x;
+            data[m + r] = v.y;
+            data[2 * m + r] = v.z;
+        }
+        let b = Matrix::from_vec(m, 1, 3, data);
+        let bmax = b
+            .ex()
+            .norm_over(Axes::ROWS)
+            .into_vec()
+            .into_iter()
+            .fold(0.0, f64::max);
+        if bmax == 0.0 {
+            return Ok(out);
+        }
+        let params = CgParams {
+            absolute_tolerance: self.params.absolute_tolerance.max(self.params.tolerance * bmax),
+            ..self.params
+        };
+        let mut y = Matrix::zeros(m, 1, 3);
+        cg(&self.matrix, &b, &mut y, jacobi, &params)
+            .map_err(|e| Error::Invalid(format!("diffusion adjoint: {e}")))?;
+        let (ys, yy, yz) = (y.batch(0), y.batch(1), y.batch(2));
+        let os = out.as_mut_slice();
+        for r in 0..m {
+            let yr = Vec3::new(ys[r], yy[r], yz[r]);
+            let (a, b) = (self.dirichlet_ptr[r] as usize, self.dirichlet_ptr[r + 1] as usize);
+            for &(d, c) in &self.dirichlet[a..b] {
+                os[d as usize] = os[d as usize] - yr * c;
+            }
+        }
+        Ok(out)
+    }
+
     /// What the last successful [`Diffusion::diffuse`] did, if any.
     pub fn last_info(&self) -> Option<CgInfo<f64>> {
         self.warm.lock().unwrap_or_else(|e| e.into_inner()).info.clone()

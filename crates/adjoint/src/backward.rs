@@ -1,0 +1,212 @@
+//! The backward twin of [`cutfem::fem::Simulation::step`] (thesis Alg. 5.3, sec. 5.5.3-5.5.6).
+//!
+//! A forward step maps `(u, v)` to `u' = A(u, v, p)^{-1} b(u, v, p)` and
+//! `v' = (u' - u) / (theta dt) - (1 - theta) / theta v` (eq. 2.6.2). Given the adjoints
+//! `u'_bar`, `v'_bar` of the new state, the backward step
+//!
+//! 1. collects the adjoint of `u'`: `g = u'_bar + v'_bar / (theta dt)` (eq. 5.5.1),
+//! 2. solves `A lam = g` with the same, symmetric `A` (eq. 5.5.2), recomputed from the stored
+//!    `(u, v)` rather than stored (sec. 5.7),
+//! 3. differentiates the Lagrangian `L = lam^T (b(u, v, p) - A(u, v, p) u')` with `u'` held
+//!    fixed (eq. 5.5.3): `u_bar = dL/du - v'_bar / (theta dt)`,
+//!    `v_bar = dL/dv - (1 - theta) / theta v'_bar`, and `p_bar += dL/dp`.
+//!
+//! With `c_M = 1/(theta dt) + alpha_1`,
+//! `L = c_M lam^T M (u - u') + lam^T K(u) w + lam^T M v / theta + dt lam^T (M g + f_rot(u) + f_c(u, v))
+//!      - theta dt lam^T K_c(u) u'`,
+//! `w = (alpha_2 - (1 - theta) dt) u - (alpha_2 + theta dt) u'`. Its parts:
+//! * mass, damping and gravity (sec. 5.5.3, 5.5.6): vector algebra;
+//! * `K(u) w` and the corotation force: through the rotations, cell by cell
+//!   ([`crate::local::cell_elastic_adjoint`], [`crate::local::polar_rotation_adjoint`], eq. 5.5.4),
+//!   and the Lame parameters (5.5.5); the Nitsche blocks are linear in `(lambda, mu)`;
+//! * contact (Alg. 5.5, sec. 5.5.5): per crossing ([`crate::local::contact_adjoint`]).
+
+use crate::local::{
+    cell_elastic_adjoint, contact_adjoint, deformation_gradient_adjoint, polar_rotation_adjoint,
+};
+use cutfem::fem::element::{corner_offsets, deformation_gradient, POLAR_ITERATIONS};
+use cutfem::fem::Simulation;
+use gpumat::{Mat3, Matrix, Vec3};
+use rayon::prelude::*;
+
+/// Gradient of a scalar with respect to the physical parameters of a [`cutfem::fem::Model`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PhysicalGradient {
+    /// Lame lambda
+    pub lambda: f64,
+    /// Lame mu
+    pub mu: f64,
+    /// density
+    pub density: f64,
+    /// Rayleigh `alpha_1`
+    pub damping_mass: f64,
+    /// Rayleigh `alpha_2`
+    pub damping_stiffness: f64,
+    /// gravity vector
+    pub gravity: Vec3<f64>,
+    /// ground normal (as a free vector; the caller projects it)
+    pub ground_normal: Vec3<f64>,
+    /// ground height
+    pub ground_height: f64,
+    /// initial linear velocity
+    pub initial_velocity: Vec3<f64>,
+    /// initial angular velocity
+    pub initial_angular_velocity: Vec3<f64>,
+    /// per active cell, the derivative with respect to its Young's modulus factor
+    /// (`Model::stiffness_scale`; computed also when the model is homogeneous, where it is the
+    /// score of a heterogeneous stiffness)
+    pub cell_scale: Vec<f64>,
+}
+
+/// `lam^T (b - A u')` for the last [`Simulation::assemble_system`]: the Lagrangian whose
+/// derivatives [`step_adjoint`] computes (used by the derivative checks).
+pub fn step_lagrangian(sim: &Simulation, u_next: &Matrix<Vec3<f64>>, lam: &Matrix<Vec3<f64>>) -> f64 {
+    let a = sim.newmark_matrix();
+    let b = sim.newmark_rhs();
+    lam.ex().dot(b - a * u_next)
+}
+
+/// Adds the derivatives of `L = lam^T (b - A u')` (module docs) to `u_bar`, `v_bar` and `grad`.
+/// `sim` must have been assembled ([`Simulation::assemble_system`]) at the step's start state
+/// `(sim.u, sim.v)`; `u_next` is the state the forward step produced.
+pub fn step_adjoint(
+    sim: &Simulation,
+    u_next: &Matrix<Vec3<f64>>,
+    lam: &Matrix<Vec3<f64>>,
+    u_bar: &mut Matrix<Vec3<f64>>,
+    v_bar: &mut Matrix<Vec3<f64>>,
+    grad: &mut PhysicalGradient,
+) {
+    let model = &sim.model;
+    let (dt, theta) = (model.dt, model.theta);
+    let (a1, a2) = (model.damping_mass, model.damping_stiffness);
+    let cm = 1.0 / (theta * dt) + a1;
+    let cw = a2 - (1.0 - theta) * dt;
+    let cn = a2 + theta * dt;
+    let k = sim.stiffness();
+    let m = &sim.mass;
+    let (u, v) = (&sim.u, &sim.v);
+
+    // mass, damping, gravity
+    let k_lam = Matrix::eval(k * lam);
+    u_bar.assign_with(|ub| ub + m.ex().cwise_mul(lam.ex()) * cm + k_lam.ex() * cw);
+    v_bar.assign_with(|vb| vb + m.ex().cwise_mul(lam.ex()) * (1.0 / theta));
+    let m_lam = Matrix::eval(m.ex().cwise_mul(lam.ex()));
+    let lam_m_du = m_lam.ex().dot(u - u_next);
+    let lam_m_v = m_lam.ex().dot(v.ex());
+    let s: Vec3<f64> = m_lam.ex().sum();
+    let lam_m_g = s.dot(model.gravity);
+    grad.density += (cm * lam_m_du + lam_m_v / theta + dt * lam_m_g) / model.density;
+    grad.damping_mass += lam_m_du;
+    grad.damping_stiffness += k_lam.ex().dot(u - u_next);
+    grad.gravity = grad.gravity + s * dt;
+
+    // elastic terms, cell by cell
+    let grid = &sim.grid;
+    let h = grid.h();
+    let x = corner_offsets(h);
+    let blocks = sim.element_blocks().expect("assembled");
+    let tables = sim.assembler.tables();
+    let rotations = sim.rotations();
+    let scale = model.stiffness_scale.as_deref();
+    let (lame_l, lame_m) = model.lame();
+    let (us, uns, ls) = (u.as_slice(), u_next.as_slice(), lam.as_slice());
+    let per_cell: Vec<([Vec3<f64>; 8], f64, f64, f64)> = grid
+        .cells
+        .par_iter()
+        .enumerate()
+        .map(|(e, c)| {
+            let d = |q: usize| c.dofs[q] as usize;
+            let lam_e: [Vec3<f64>; 8] = std::array::from_fn(|q| ls[d(q)]);
+            let a_e: [Vec3<f64>; 8] = std::array::from_fn(|q| us[d(q)] * cw - uns[d(q)] * cn - x[q] * dt);
+            let r = rotations.map_or(Mat3::identity(), |r| r[e]);
+            // the cell's term is s_e times the homogeneous one (linear in lambda, mu)
+            let se = scale.map_or(1.0, |s| s[e]);
+            let (r_bar, dl, dm) = cell_elastic_adjoint(
+                tables,
+                &c.integrals.volume,
+                blocks.cell(e),
+                &r,
+                &lam_e,
+                &a_e,
+                &x,
+                dt,
+            );
+            let mut ub = [Vec3::default(); 8];
+            if rotations.is_some() {
+                let u_e: [Vec3<f64>; 8] = std::array::from_fn(|q| us[d(q)]);
+                let f = deformation_gradient(&u_e, h);
+                let f_bar = polar_rotation_adjoint(f, POLAR_ITERATIONS, r_bar * se);
+                deformation_gradient_adjoint(&f_bar, h, &mut ub);
+            }
+            (ub, dl, dm, se)
+        })
+        .collect();
+    if grad.cell_scale.len() != grid.cells.len() {
+        grad.cell_scale = vec![0.0; grid.cells.len()];
+    }
+    for (e, (_, dl, dm, se)) in per_cell.iter().enumerate() {
+        grad.lambda += se * dl;
+        grad.mu += se * dm;
+        grad.cell_scale[e] += lame_l * dl + lame_m * dm;
+    }
+    if rotations.is_some() {
+        let ubs = u_bar.as_mut_slice();
+        ubs.par_iter_mut().enumerate().for_each(|(dof, out)| {
+            for &(e, q) in sim.assembler.cells_of(dof) {
+                *out = *out + per_cell[e as usize].0[q as usize];
+            }
+        });
+    }
+
+    // Nitsche terms: linear in (lambda, mu), independent of u
+    let w_at = |q: usize| us[q] * cw - uns[q] * cn;
+    for (e, c) in grid.cells.iter().enumerate() {
+        if !sim.dirichlet[e] {
+            continue;
+        }
+        let ci = &c.integrals;
+        let n = Vec3::from_array(ci.normal);
+        let se = scale.map_or(1.0, |s| s[e]);
+        for i in 0..8 {
+            let li = ls[c.dofs[i] as usize];
+            for j in 0..8 {
+                let wj = w_at(c.dofs[j] as usize);
+                let nl = li.dot(tables.nitsche_block(&ci.boundary, n, i, j, 1.0, 0.0, 0.0) * wj);
+                let nm = li.dot(tables.nitsche_block(&ci.boundary, n, i, j, 0.0, 1.0, 0.0) * wj);
+                grad.lambda += se * nl;
+                grad.mu += se * nm;
+                grad.cell_scale[e] += lame_l * nl + lame_m * nm;
+            }
+        }
+    }
+
+    // contact
+    if let Some(g) = &model.ground {
+        let vs = v.as_slice();
+        let ubs = u_bar.as_mut_slice();
+        let vbs = v_bar.as_mut_slice();
+        for c in &sim.crossings {
+            let (a, b, t) = (c.a as usize, c.b as usize, c.t);
+            let ip = |s: &[Vec3<f64>]| s[a] * (1.0 - t) + s[b] * t;
+            let x0 = grid.positions[a] * (1.0 - t) + grid.positions[b] * t;
+            let adj = contact_adjoint(g, dt, theta, x0, ip(us), ip(uns), ip(vs), ip(ls));
+            ubs[a] = ubs[a] + adj.u * (1.0 - t);
+            ubs[b] = ubs[b] + adj.u * t;
+            vbs[a] = vbs[a] + adj.v * (1.0 - t);
+            vbs[b] = vbs[b] + adj.v * t;
+            grad.ground_normal = grad.ground_normal + adj.normal;
+            grad.ground_height += adj.height;
+        }
+    }
+}
+
+/// Adds the adjoint of the initial velocity `v0 + omega x (x - c)` for `v_bar` (the adjoint of
+/// frame 0's velocity) to `grad`.
+pub fn initial_velocity_adjoint(sim: &Simulation, v_bar: &Matrix<Vec3<f64>>, grad: &mut PhysicalGradient) {
+    let c = sim.center_of_mass();
+    for (p, vb) in sim.grid.positions.iter().zip(v_bar.as_slice()) {
+        grad.initial_velocity = grad.initial_velocity + *vb;
+        grad.initial_angular_velocity = grad.initial_angular_velocity + (*p - c).cross(*vb);
+    }
+}

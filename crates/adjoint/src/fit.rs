@@ -1,0 +1,364 @@
+//! Fitting a scene to observations: the problem set up from a scene file, the optimizer
+//! objective around [`Problem`], and the physical-space finite differences of `gradcheck`.
+
+use crate::cost::{ObservedPoint, PointCloudCost, Robust};
+use crate::observations::Observations;
+use crate::optim::{EvalError, GaussNewtonObjective, GnEval, Objective};
+use crate::params::ParamSet;
+use crate::problem::{Evaluation, Problem};
+use cutfem::fem::advect::Diffusion;
+use cutfem::fem::{Grid, Model, Simulation};
+use cutfem::scene::Scene;
+use gpumat::Vec3;
+
+/// Builds the point-cloud cost of `observations` on `grid`.
+pub fn point_cloud_cost(
+    grid: &Grid,
+    observations: &Observations,
+    robust: Robust,
+) -> Result<PointCloudCost, String> {
+    let band = Diffusion::new(grid).map_err(|e| e.to_string())?;
+    Ok(PointCloudCost::new(
+        grid,
+        band,
+        observed_frames(observations),
+        robust,
+    ))
+}
+
+/// The simulation of a scene (its grid, model and solver settings).
+pub fn scene_simulation(scene: &Scene) -> Result<Simulation, String> {
+    let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
+    let grid = Grid::new(sdf).map_err(|e| e.to_string())?;
+    let mut sim = Simulation::new(grid, scene.to_model()).map_err(|e| e.to_string())?;
+    sim.solver.cg.tolerance = scene.numerics.cg_tolerance;
+    sim.solver.cg.max_iterations = scene.numerics.cg_max_iterations;
+    Ok(sim)
+}
+
+/// Which point-to-surface residual a fit uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CostKind {
+    /// signed distance to the simulated surface mesh ([`crate::cost_mesh::SurfaceCost`])
+    #[default]
+    Surface,
+    /// the thesis' level-set value `phi(t)(x)` (eq. 5.4.4, [`PointCloudCost`])
+    LevelSet,
+}
+
+impl std::str::FromStr for CostKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "surface" => Ok(CostKind::Surface),
+            "levelset" => Ok(CostKind::LevelSet),
+            _ => Err(format!("unknown cost `{s}` (known: surface, levelset)")),
+        }
+    }
+}
+
+/// The observed points grouped by frame.
+pub fn observed_frames(observations: &Observations) -> Vec<(usize, Vec<ObservedPoint>)> {
+    observations
+        .frames()
+        .map(|(f, pts)| {
+            let pts = pts
+                .iter()
+                .map(|p| ObservedPoint {
+                    position: Vec3::new(p.position[0], p.position[1], p.position[2]),
+                    weight: p.weight,
+                })
+                .collect();
+            (f, pts)
+        })
+        .collect()
+}
+
+/// The point-cloud reconstruction problem of a scene: its simulation, `steps` steps (default:
+/// the scene's), the parameters and the observations.
+pub fn scene_problem(
+    scene: &Scene,
+    observations: &Observations,
+    params: ParamSet,
+    robust: Robust,
+    steps: Option<usize>,
+    kind: CostKind,
+) -> Result<Problem, String> {
+    let sim = scene_simulation(scene)?;
+    let mut params = params;
+    if params.params.contains(&crate::params::Param::StiffnessField) {
+        let cells = scene
+            .model
+            .as_ref()
+            .and_then(|m| m.stiffness_field.as_ref())
+            .map_or([4, 4, 4], |f| f.cells);
+        params.field = Some(crate::params::FieldBasis::new(&sim.grid, cells)?.into());
+    }
+    let cost: Box<dyn crate::cost::Cost> = match kind {
+        CostKind::Surface => Box::new(crate::cost_mesh::SurfaceCost::new(
+            &sim.grid,
+            observed_frames(observations),
+            robust,
+        )?),
+        CostKind::LevelSet => Box::new(point_cloud_cost(&sim.grid, observations, robust)?),
+    };
+    let steps = steps.unwrap_or(scene.time.steps);
+    Problem::new(sim, params, cost, steps).map_err(|e| e.to_string())
+}
+
+/// Evaluations kept by `x`, shared with the caller's iteration callback.
+pub type EvaluationLog = std::rc::Rc<std::cell::RefCell<Vec<(Vec<f64>, Evaluation)>>>;
+
+/// The first line (1-based) of an observation CSV whose frame is `frame`, if any.
+pub fn frame_line(path: &std::path::Path, frame: usize) -> Option<usize> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let mut lines = text.lines().enumerate();
+    let header = lines.next()?.1;
+    let col = header
+        .trim_start_matches('\u{feff}')
+        .split(',')
+        .position(|c| c.trim().eq_ignore_ascii_case("frame"))?;
+    lines
+        .find(|(_, l)| l.split(',').nth(col).and_then(|f| f.trim().parse::<usize>().ok()) == Some(frame))
+        .map(|(i, _)| i + 1)
+}
+
+/// Errors (naming the file and line) when an observed frame lies beyond `steps`.
+pub fn check_frames(observations: &Observations, path: &std::path::Path, steps: usize) -> Result<(), String> {
+    match observations.last_frame() {
+        Some(last) if last > steps => {
+            let line = frame_line(path, last).map_or(String::new(), |l| format!(":{l}"));
+            Err(format!(
+                "{}{line}: frame {last} lies beyond the {steps} simulated steps (raise [time].steps or pass --steps)",
+                path.display()
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Checks observations against a problem before fitting: frames beyond the simulated steps
+/// and observations entirely out of reach of the simulated body are errors naming the file
+/// (and line).
+pub fn check_observations(
+    problem: &mut Problem,
+    observations: &Observations,
+    path: &std::path::Path,
+) -> Result<Evaluation, String> {
+    check_frames(observations, path, problem.steps)?;
+    let ev = problem
+        .evaluate(&problem.x0())
+        .map_err(|e| format!("the starting model: {e}"))?;
+    let (outside, count) = ev
+        .frames
+        .iter()
+        .fold((0, 0), |(o, c), f| (o + f.outside, c + f.count));
+    if count > 0 && outside == count {
+        return Err(format!(
+            "{}: none of the {count} observed points lies within reach (two cells) of the simulated surface at the starting parameters; check their units, frames and coordinate frame",
+            path.display()
+        ));
+    }
+    Ok(ev)
+}
+
+/// The optimizer's view of a [`Problem`]: every evaluation runs the forward and adjoint passes
+/// (and, for Gauss-Newton, the tangent-linear pass); the evaluations are kept by `x` in a
+/// shared log so that an iteration callback can report the rms of each iteration at once.
+#[derive(Debug)]
+pub struct FitObjective<'a> {
+    /// the problem
+    pub problem: &'a mut Problem,
+    /// evaluations done, in order: `(x, evaluation)`
+    pub evaluations: EvaluationLog,
+}
+
+impl<'a> FitObjective<'a> {
+    /// Wraps a problem.
+    pub fn new(problem: &'a mut Problem) -> Self {
+        Self {
+            problem,
+            evaluations: EvaluationLog::default(),
+        }
+    }
+    /// The evaluation at exactly `x`, if one was made.
+    pub fn evaluation_at(&self, x: &[f64]) -> Option<Evaluation> {
+        find_evaluation(&self.evaluations, x)
+    }
+    fn keep(&mut self, x: &[f64], ev: Evaluation) {
+        self.evaluations.borrow_mut().push((x.to_vec(), ev));
+    }
+}
+
+/// The evaluation at exactly `x` in a log, if any.
+pub fn find_evaluation(log: &EvaluationLog, x: &[f64]) -> Option<Evaluation> {
+    log.borrow()
+        .iter()
+        .rev()
+        .find(|(xe, _)| xe == x)
+        .map(|(_, e)| e.clone())
+}
+
+impl Objective for FitObjective<'_> {
+    fn eval(&mut self, x: &[f64]) -> Result<(f64, Vec<f64>), EvalError> {
+        let (ev, g, _) = self
+            .problem
+            .gradient(x)
+            .map_err(|e| EvalError::new(e.to_string()))?;
+        let cost = ev.cost;
+        self.keep(x, ev);
+        Ok((cost, g))
+    }
+}
+
+impl GaussNewtonObjective for FitObjective<'_> {
+    fn eval_gn(&mut self, x: &[f64]) -> Result<GnEval, EvalError> {
+        let (ev, gradient, hessian) = self
+            .problem
+            .gauss_newton(x)
+            .map_err(|e| EvalError::new(e.to_string()))?;
+        let cost = ev.cost;
+        self.keep(x, ev);
+        Ok(GnEval {
+            cost,
+            gradient,
+            hessian,
+        })
+    }
+}
+
+/// Reads a physical parameter component by its label ([`ParamSet::values`]).
+pub fn get_physical(model: &Model, label: &str) -> Option<f64> {
+    let comp = |v: Vec3<f64>, c: &str| {
+        let a = v.to_array();
+        match c {
+            "x" => Some(a[0]),
+            "y" => Some(a[1]),
+            "z" => Some(a[2]),
+            _ => None,
+        }
+    };
+    let (head, tail) = label.rsplit_once('.').unwrap_or((label, ""));
+    match (head, tail) {
+        ("young", "") => Some(model.young),
+        ("poisson", "") => Some(model.poisson),
+        ("density", "") => Some(model.density),
+        ("damping_mass", "") => Some(model.damping_mass),
+        ("damping_stiffness", "") => Some(model.damping_stiffness),
+        ("gravity", c) => comp(model.gravity, c),
+        ("initial_velocity", c) => comp(model.initial_velocity, c),
+        ("initial_angular_velocity", c) => comp(model.initial_angular_velocity, c),
+        ("ground.normal", c) => comp(model.ground.as_ref()?.normal, c),
+        ("ground", "height") => Some(model.ground.as_ref()?.height),
+        _ => None,
+    }
+}
+
+/// Writes a physical parameter component by its label; false when the label is unknown.
+pub fn set_physical(model: &mut Model, label: &str, value: f64) -> bool {
+    let set = |v: &mut Vec3<f64>, c: &str| {
+        let mut a = v.to_array();
+        let i = match c {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            _ => return false,
+        };
+        a[i] = value;
+        *v = Vec3::from_array(a);
+        true
+    };
+    let (head, tail) = label.rsplit_once('.').unwrap_or((label, ""));
+    match (head, tail) {
+        ("young", "") => model.young = value,
+        ("poisson", "") => model.poisson = value,
+        ("density", "") => model.density = value,
+        ("damping_mass", "") => model.damping_mass = value,
+        ("damping_stiffness", "") => model.damping_stiffness = value,
+        ("gravity", c) => return set(&mut model.gravity, c),
+        ("initial_velocity", c) => return set(&mut model.initial_velocity, c),
+        ("initial_angular_velocity", c) => return set(&mut model.initial_angular_velocity, c),
+        ("ground.normal", c) => match model.ground.as_mut() {
+            Some(g) => return set(&mut g.normal, c),
+            None => return false,
+        },
+        ("ground", "height") => match model.ground.as_mut() {
+            Some(g) => g.height = value,
+            None => return false,
+        },
+        _ => return false,
+    }
+    true
+}
+
+/// One line of a gradient check.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GradCheck {
+    /// the physical component
+    pub name: String,
+    /// the adjoint derivative
+    pub adjoint: f64,
+    /// the central difference
+    pub finite_difference: f64,
+    /// the step used
+    pub step: f64,
+    /// `|adjoint - fd| / max(|adjoint|, |fd|)` (0 when both vanish)
+    pub rel_error: f64,
+}
+
+/// Compares the adjoint gradient in physical units with central differences of the whole
+/// simulation, one component at a time, with step `rel_step * max(|value|, scale)` where `scale`
+/// is 1 for vectors and heights.
+pub fn gradcheck(problem: &mut Problem, rel_step: f64) -> Result<Vec<GradCheck>, String> {
+    let x0 = problem.x0();
+    let model0 = problem.model_at(&x0);
+    let (_, _, pg) = problem.gradient(&x0).map_err(|e| e.to_string())?;
+    let adjoint = problem.params.physical(&model0, &pg);
+    let mut out = Vec::new();
+    let labels = problem.params.labels();
+    for (name, an) in adjoint {
+        if name.starts_with("stiffness_field[") {
+            // a coefficient (log factor): differences in the coordinate itself
+            let k = labels.iter().position(|l| *l == name).ok_or("field label")?;
+            let step = rel_step.max(1e-6);
+            let mut at = |d: f64| -> Result<f64, String> {
+                let mut x = x0.clone();
+                x[k] += d;
+                problem.evaluate(&x).map(|e| e.cost).map_err(|e| e.to_string())
+            };
+            let fd = (at(step)? - at(-step)?) / (2.0 * step);
+            let den = an.abs().max(fd.abs());
+            out.push(GradCheck {
+                name,
+                adjoint: an,
+                finite_difference: fd,
+                step,
+                rel_error: if den == 0.0 { 0.0 } else { (an - fd).abs() / den },
+            });
+            continue;
+        }
+        let v = get_physical(&model0, &name).ok_or_else(|| format!("unknown component {name}"))?;
+        let mut step = rel_step * v.abs().max(if v.abs() > 0.0 { 0.0 } else { 1.0 });
+        if name == "poisson" {
+            step = step.min(0.5 * (0.5 - v)).min(0.5 * v);
+        }
+        let mut cost_at = |val: f64| -> Result<f64, String> {
+            let mut m = model0.clone();
+            set_physical(&mut m, &name, val);
+            problem
+                .evaluate_model(m)
+                .map(|e| e.cost)
+                .map_err(|e| e.to_string())
+        };
+        let fd = (cost_at(v + step)? - cost_at(v - step)?) / (2.0 * step);
+        let den = an.abs().max(fd.abs());
+        out.push(GradCheck {
+            name,
+            adjoint: an,
+            finite_difference: fd,
+            step,
+            rel_error: if den == 0.0 { 0.0 } else { (an - fd).abs() / den },
+        });
+    }
+    Ok(out)
+}

@@ -1,0 +1,260 @@
+//! Local adjoints: the derivatives of the per-cell and per-crossing stages of a step (thesis
+//! sec. 5.5.4-5.5.5), each checked in isolation against central differences in
+//! `tests/local.rs` (the thesis' randomized test, sec. 5.2.5).
+//!
+//! # Polar decomposition (eq. 4.4.9, adjoint 5.5.4)
+//!
+//! The forward iteration is `R_0 = F`, `R_{k+1} = (R_k + R_k^{-T}) / 2`. For `Y = X^{-T}`,
+//! `dY = -X^{-T} dX^T X^{-T}`, so the adjoint of one iteration is
+//! `X_bar = Y_bar / 2 - X^{-T} (Y_bar / 2)^T X^{-T}`, applied from the last iteration back to
+//! `F`. When the forward returned the identity (collapsed cell) the adjoint is zero.
+//!
+//! # Elastic term of a cell
+//!
+//! With `lam_i` the adjoint of the Newmark solve at corner `i` (`A lam = g`), the cell's part of
+//! the Lagrangian `lam^T (b - A u')` that depends on the rotation `R` and on `(lambda, mu)` is
+//!
+//! ```text
+//! S(R) = sum_ij lam_i^T R K_ij R^T a_j  +  dt sum_ij lam_i^T R K_ij x_j,
+//! a_j  = w_j - dt x_j,   w = (alpha_2 - (1-theta) dt) u - (alpha_2 + theta dt) u',
+//! ```
+//!
+//! (the stiffness in `b` and `A`, eq. 2.6.2, and the corotation force 4.4.6 in `dt f`; `x_j`
+//! the corner offsets). With `lt_i = R^T lam_i`, `b_j = R^T a_j + dt x_j`,
+//! `y_i = sum_j K_ij b_j` and `z_j = sum_i K_ji lt_i`:
+//!
+//! ```text
+//! dS/dR = sum_i lam_i y_i^T + sum_j a_j z_j^T,
+//! ```
+//!
+//! and since `K_ij = sum_c w_v(c) (lambda K^lambda_ij(c) + mu K^mu_ij(c))` (eq. 4.4.5), with the
+//! corner gradient tensors `G_l(c) = sum_i lt_i grad N_i(c)^T`, `G_b(c) = sum_j b_j grad N_j(c)^T`:
+//!
+//! ```text
+//! dS/dlambda = sum_c w_v(c) tr G_l tr G_b,    dS/dmu = sum_c w_v(c) (tr(G_l G_b) + G_l : G_b)
+//! ```
+//!
+//! (eq. 5.5.5: the adjoints of the Lame parameters). Without corotation `R = I` and the same
+//! formulas hold (the corotation force vanishes).
+//!
+//! # Contact (Alg. 5.5)
+//!
+//! Per crossing with interpolated adjoint `Lambda = n . lam_c`, signed distance
+//! `d = n . (X_c + u_c) - height` and `S(d) = softmin_alpha(0, d)`, the implicit scheme
+//! contributes `L_c = dt Lambda (-k S(d) - theta k S'(d) n . (u'_c - u_c))`, the thesis'
+//! explicit scheme `L_c = dt Lambda (-k S(d) - theta dt k S'(d) n . v_c)`.
+
+use cutfem::fem::collision::{softmin0, softmin0_derivative, ContactScheme, Ground};
+use cutfem::fem::element::StiffnessTables;
+use gpumat::{Mat3, Vec3};
+
+/// Frobenius inner product `A : B`.
+pub fn frobenius(a: &Mat3<f64>, b: &Mat3<f64>) -> f64 {
+    (0..3)
+        .map(|i| (0..3).map(|j| a.m[i][j] * b.m[i][j]).sum::<f64>())
+        .sum()
+}
+
+/// The iterates `R_0 = F, ..., R_iterations` of the polar iteration, or `None` where the
+/// forward ([`cutfem::fem::element::polar_rotation`]) returns the identity.
+pub fn polar_iterates(f: Mat3<f64>, iterations: usize) -> Option<Vec<Mat3<f64>>> {
+    let det = f.determinant();
+    if !det.is_finite() || det.abs() < 1e-6 {
+        return None;
+    }
+    let mut out = Vec::with_capacity(iterations + 1);
+    let mut r = f;
+    out.push(r);
+    for _ in 0..iterations {
+        let inv = r.inverse()?;
+        r = (r + inv.transpose()) * 0.5;
+        out.push(r);
+    }
+    Some(out)
+}
+
+/// The adjoint of the polar rotation: `F_bar` for the gradient `r_bar` of the final `R`.
+pub fn polar_rotation_adjoint(f: Mat3<f64>, iterations: usize, r_bar: Mat3<f64>) -> Mat3<f64> {
+    let Some(it) = polar_iterates(f, iterations) else {
+        return Mat3::default();
+    };
+    let mut g = r_bar;
+    for k in (0..iterations).rev() {
+        let x_it = it[k].inverse().expect("forward inverted it").transpose();
+        let y_bar = g * 0.5;
+        g = y_bar - x_it * y_bar.transpose() * x_it;
+    }
+    g
+}
+
+/// The corner sign pattern `s_i` of eq. 4.4.8.
+pub fn corner_signs(i: usize) -> Vec3<f64> {
+    let s = |b: usize| if (i >> b) & 1 == 1 { 1.0 } else { -1.0 };
+    Vec3::new(s(0), s(1), s(2))
+}
+
+/// The adjoint of the average deformation gradient (eq. 4.4.8): adds `F_bar s_i / (4h)` to
+/// `u_bar[i]`.
+pub fn deformation_gradient_adjoint(f_bar: &Mat3<f64>, h: f64, u_bar: &mut [Vec3<f64>; 8]) {
+    for (i, ub) in u_bar.iter_mut().enumerate() {
+        *ub = *ub + *f_bar * corner_signs(i) * (1.0 / (4.0 * h));
+    }
+}
+
+/// The value of the cell's elastic term `S(R)` (module docs) for element blocks `k`.
+pub fn cell_elastic_value(
+    k: &[[Mat3<f64>; 8]; 8],
+    r: &Mat3<f64>,
+    lam: &[Vec3<f64>; 8],
+    a: &[Vec3<f64>; 8],
+    x: &[Vec3<f64>; 8],
+    dt: f64,
+) -> f64 {
+    let rt = r.transpose();
+    let mut s = 0.0;
+    for i in 0..8 {
+        let lt = rt * lam[i];
+        for j in 0..8 {
+            s += lt.dot(k[i][j] * (rt * a[j] + x[j] * dt));
+        }
+    }
+    s
+}
+
+/// The derivatives of the cell's elastic term (module docs): `(dS/dR, dS/dlambda, dS/dmu)`
+/// for the element blocks `k` (built from the volume weights `w` and the Lame parameters).
+pub fn cell_elastic_adjoint(
+    tables: &StiffnessTables,
+    w: &[f64; 8],
+    k: &[[Mat3<f64>; 8]; 8],
+    r: &Mat3<f64>,
+    lam: &[Vec3<f64>; 8],
+    a: &[Vec3<f64>; 8],
+    x: &[Vec3<f64>; 8],
+    dt: f64,
+) -> (Mat3<f64>, f64, f64) {
+    let rt = r.transpose();
+    let lt: [Vec3<f64>; 8] = std::array::from_fn(|i| rt * lam[i]);
+    let b: [Vec3<f64>; 8] = std::array::from_fn(|j| rt * a[j] + x[j] * dt);
+    let mut r_bar = Mat3::default();
+    for i in 0..8 {
+        let mut y = Vec3::default();
+        let mut z = Vec3::default();
+        for j in 0..8 {
+            y = y + k[i][j] * b[j];
+            // z_i = sum_j K_ji^T lt_j = sum_j K_ij lt_j (K_ji = K_ij^T)
+            z = z + k[i][j] * lt[j];
+        }
+        r_bar = r_bar + lam[i].outer(y) + a[i].outer(z);
+    }
+    let (mut dl, mut dm) = (0.0, 0.0);
+    for c in 0..8 {
+        if w[c] == 0.0 {
+            continue;
+        }
+        let mut gl = Mat3::default();
+        let mut gb = Mat3::default();
+        for i in 0..8 {
+            let g = tables.grad[c][i];
+            gl = gl + lt[i].outer(g);
+            gb = gb + b[i].outer(g);
+        }
+        dl += w[c] * gl.trace() * gb.trace();
+        dm += w[c] * ((gl * gb).trace() + frobenius(&gl, &gb));
+    }
+    (r_bar, dl, dm)
+}
+
+/// Derivatives of one crossing's contact term `L_c` (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ContactAdjoint {
+    /// `dL_c/du_c` (to be spread to the corners with weights `1-t`, `t`)
+    pub u: Vec3<f64>,
+    /// `dL_c/du'_c`... not needed by the adjoint (u' is fixed), kept for checks
+    pub u_next: Vec3<f64>,
+    /// `dL_c/dv_c` (thesis scheme only)
+    pub v: Vec3<f64>,
+    /// `dL_c/dn` (the normal as a free vector)
+    pub normal: Vec3<f64>,
+    /// `dL_c/dheight`
+    pub height: f64,
+    /// `dL_c/dlam_c`
+    pub lam: Vec3<f64>,
+}
+
+/// `d^2 softmin_alpha(0, d) / dd^2 = -alpha S'(1 - S')`.
+pub fn softmin0_second(d: f64, alpha: f64) -> f64 {
+    let s1 = softmin0_derivative(d, alpha);
+    -alpha * s1 * (1.0 - s1)
+}
+
+/// The value of one crossing's contact term `L_c` at reference point `x0` (interpolated
+/// reference position), interpolated `u`, `u_next`, `v` and adjoint `lam`.
+pub fn contact_value(
+    g: &Ground,
+    dt: f64,
+    theta: f64,
+    x0: Vec3<f64>,
+    u: Vec3<f64>,
+    u_next: Vec3<f64>,
+    v: Vec3<f64>,
+    lam: Vec3<f64>,
+) -> f64 {
+    let n = g.normal;
+    let d = n.dot(x0 + u) - g.height;
+    let k = g.stiffness;
+    let (s, s1) = (softmin0(d, g.softness), softmin0_derivative(d, g.softness));
+    let tail = match g.scheme {
+        ContactScheme::Implicit => theta * k * s1 * n.dot(u_next - u),
+        ContactScheme::Thesis => theta * dt * k * s1 * n.dot(v),
+    };
+    dt * n.dot(lam) * (-k * s - tail)
+}
+
+/// The derivatives of [`contact_value`] (the normal taken as a free vector).
+pub fn contact_adjoint(
+    g: &Ground,
+    dt: f64,
+    theta: f64,
+    x0: Vec3<f64>,
+    u: Vec3<f64>,
+    u_next: Vec3<f64>,
+    v: Vec3<f64>,
+    lam: Vec3<f64>,
+) -> ContactAdjoint {
+    let n = g.normal;
+    let p = x0 + u;
+    let d = n.dot(p) - g.height;
+    let k = g.stiffness;
+    let alpha = g.softness;
+    let (s, s1, s2) = (
+        softmin0(d, alpha),
+        softmin0_derivative(d, alpha),
+        softmin0_second(d, alpha),
+    );
+    let big_l = n.dot(lam);
+    // L = dt Lambda (-k S(d) - c(d) q) with q the scheme's rate term
+    let (q_vec, coef) = match g.scheme {
+        ContactScheme::Implicit => (u_next - u, theta * k),
+        ContactScheme::Thesis => (v, theta * dt * k),
+    };
+    let q = n.dot(q_vec);
+    let inner = -k * s - coef * s1 * q;
+    let dl_dd = dt * big_l * (-k * s1 - coef * s2 * q);
+    let dl_dq = -dt * big_l * coef * s1;
+    let mut out = ContactAdjoint {
+        lam: n * (dt * inner),
+        height: -dl_dd,
+        u: n * dl_dd,
+        ..Default::default()
+    };
+    out.normal = lam * (dt * inner) + p * dl_dd + q_vec * dl_dq;
+    match g.scheme {
+        ContactScheme::Implicit => {
+            out.u = out.u - n * dl_dq;
+            out.u_next = n * dl_dq;
+        }
+        ContactScheme::Thesis => out.v = n * dl_dq,
+    }
+    out
+}

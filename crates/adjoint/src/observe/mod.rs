@@ -1,0 +1,254 @@
+//! Virtual RGB-D cameras: synthetic observations of a simulated surface (thesis sec. 5.8,
+//! Fig. 5.8: simulated cameras whose depth images give the sparse point cloud of eq. 5.4.4).
+//!
+//! # Camera placement
+//!
+//! `N` cameras look at a target `c` (the centre of the body's reference bounding box) from
+//! the sphere of radius `R` around it. Camera `k` draws, from a seeded [`SplitMix64`]
+//! stream, a polar angle `theta_k` (from the up axis +y) uniform in `[pi/6, pi/2]` and an
+//! azimuth `phi_k` uniform in `[0, 2 pi)`, and sits at
+//!
+//! `e_k = c + R (sin theta_k cos phi_k, cos theta_k, sin theta_k sin phi_k)`
+//!
+//! (between 30 degrees from straight above and the body's horizon), looking at `c` with +y
+//! up, `W x W` pixels and a vertical field of view `fov_y` (45 degrees by default).
+//!
+//! # Depth images and points
+//!
+//! [`render_depth`] rasterizes the surface mesh into a z-buffer (pinhole projection
+//! `u = c_x + f x / z`, `v = c_y - f y / z`, `f = (W / 2) / tan(fov_y / 2)`, see
+//! [`camera`]); only the body's mesh is drawn, so a ground plane is never observed. Each
+//! pixel `(i, j)` that sees the surface at depth `z` gets sensor noise
+//! `z~ = z + sigma n`, `n ~ N(0, 1)` (Box-Muller on the camera's own stream, keyed by seed,
+//! frame and camera index, pixels in row-major order), and is unprojected at its centre
+//! `(u, v) = (i + 1/2, j + 1/2)`:
+//!
+//! `p = e + z~ (forward + (u - c_x) / f right - (v - c_y) / f up)`.
+//!
+//! Without noise `p` lies exactly on a triangle of the mesh; with noise it moves along the
+//! pixel's ray and its depth has standard deviation `sigma`. A camera sees about
+//! `A / a_pix` points, where `A` is the surface's projected area on the plane at depth `z`
+//! and `a_pix = (z / f)^2` the pixel's footprint there.
+//!
+//! Everything is deterministic: the same mesh, cameras, noise and seed give bit-identical
+//! points regardless of thread count or crate versions; a different seed gives different
+//! cameras and noise.
+//!
+//! ```
+//! use adjoint::observe::{observe_mesh, place_cameras, RigParams};
+//! use cutfem::{shapes::Shape, surface::extract_surface};
+//! let sdf = Shape::Sphere { center: [0.0, 1.0, 0.0], radius: 0.5 }.to_sdf(10.0, 2).unwrap();
+//! let mesh = extract_surface(&sdf).mesh;
+//! let rig = RigParams { cameras: 2, pixels: 16, ..RigParams::default() };
+//! let cameras = place_cameras([0.0, 1.0, 0.0], &rig);
+//! let points = observe_mesh(&mesh, &cameras, 0.0, rig.seed, 1);
+//! assert_eq!(points.len(), 2);
+//! assert!(points.iter().all(|p| !p.is_empty()));
+//! ```
+
+pub mod camera;
+pub mod raster;
+pub mod rng;
+
+pub use camera::{Camera, CameraFrame};
+pub use raster::{render_depth, DepthImage};
+pub use rng::SplitMix64;
+
+use crate::observations::{Observations, ObservedPoint};
+use cutfem::TriMesh;
+use std::f64::consts::{FRAC_PI_2, FRAC_PI_6, TAU};
+
+/// Tags of the random streams (camera placement, depth noise).
+const PLACEMENT: u64 = 1;
+const NOISE: u64 = 2;
+
+/// Settings of the camera rig (see the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigParams {
+    /// number of cameras (default 4)
+    pub cameras: usize,
+    /// image side `W` in pixels: each camera is `W x W` (default 32)
+    pub pixels: usize,
+    /// distance of the eyes from the target (default 3)
+    pub radius: f64,
+    /// vertical (= horizontal) field of view in radians (default 45 degrees)
+    pub fov_y: f64,
+    /// range of the polar angle from +y in radians (default `[pi/6, pi/2]`)
+    pub theta: [f64; 2],
+    /// seed of the placement (and, in [`observe_mesh`], of the noise); default 0
+    pub seed: u64,
+}
+
+impl Default for RigParams {
+    fn default() -> Self {
+        RigParams {
+            cameras: 4,
+            pixels: 32,
+            radius: 3.0,
+            fov_y: 45f64.to_radians(),
+            theta: [FRAC_PI_6, FRAC_PI_2],
+            seed: 0,
+        }
+    }
+}
+
+impl RigParams {
+    /// Checks the settings; the message names the offending field.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.cameras == 0 {
+            return Err("cameras must be at least 1".into());
+        }
+        if self.pixels == 0 {
+            return Err("pixels must be at least 1".into());
+        }
+        if !(self.radius.is_finite() && self.radius > 0.0) {
+            return Err(format!(
+                "radius must be positive and finite, found {}",
+                self.radius
+            ));
+        }
+        if !(self.fov_y.is_finite() && self.fov_y > 0.0 && self.fov_y < std::f64::consts::PI) {
+            return Err(format!(
+                "fov_y must be in (0, 180) degrees, found {}",
+                self.fov_y.to_degrees()
+            ));
+        }
+        let [a, b] = self.theta;
+        if !(a.is_finite() && b.is_finite() && 0.0 <= a && a <= b && b <= std::f64::consts::PI) {
+            return Err(format!(
+                "theta must satisfy 0 <= min <= max <= pi, found [{a}, {b}]"
+            ));
+        }
+        Ok(())
+    }
+
+    /// The angles `[theta_k, phi_k]` of the cameras, drawn from the seed.
+    pub fn angles(&self) -> Vec<[f64; 2]> {
+        let mut rng = SplitMix64::stream(self.seed, &[PLACEMENT]);
+        let [t0, t1] = self.theta;
+        (0..self.cameras)
+            .map(|_| {
+                let theta = t0 + (t1 - t0) * rng.uniform();
+                let phi = TAU * rng.uniform();
+                [theta, phi]
+            })
+            .collect()
+    }
+}
+
+/// The cameras of the rig around `target` (see the module docs). Panics when `params` is
+/// invalid (see [`RigParams::validate`]).
+#[track_caller]
+pub fn place_cameras(target: [f64; 3], params: &RigParams) -> Vec<Camera> {
+    if let Err(e) = params.validate() {
+        panic!("place_cameras: {e}");
+    }
+    params
+        .angles()
+        .into_iter()
+        .map(|[theta, phi]| {
+            let dir = [theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()];
+            let eye = add(target, scale(dir, params.radius));
+            Camera::look_at(eye, target, params.fov_y, params.pixels, params.pixels)
+        })
+        .collect()
+}
+
+/// The world points seen through the hit pixels of `image` (row-major order), with
+/// Gaussian depth noise of standard deviation `sigma` drawn from `rng` (none when
+/// `sigma == 0`).
+pub fn unproject_depth(
+    camera: &Camera,
+    image: &DepthImage,
+    sigma: f64,
+    rng: &mut SplitMix64,
+) -> Vec<[f64; 3]> {
+    let frame = camera.frame();
+    let mut out = Vec::with_capacity(image.hits());
+    for j in 0..image.height {
+        for i in 0..image.width {
+            let z = image.depth[j * image.width + i];
+            if !z.is_finite() {
+                continue;
+            }
+            let z = if sigma > 0.0 {
+                z + sigma * rng.gaussian()
+            } else {
+                z
+            };
+            out.push(frame.unproject(i as f64 + 0.5, j as f64 + 0.5, z));
+        }
+    }
+    out
+}
+
+/// What every camera sees of `mesh` at `frame`: one point list per camera (row-major pixel
+/// order), with depth noise `sigma` from the stream keyed by `(seed, frame, camera)`.
+/// Panics when `sigma` is negative or not finite.
+#[track_caller]
+pub fn observe_mesh(
+    mesh: &TriMesh,
+    cameras: &[Camera],
+    sigma: f64,
+    seed: u64,
+    frame: usize,
+) -> Vec<Vec<[f64; 3]>> {
+    assert!(
+        sigma.is_finite() && sigma >= 0.0,
+        "observe_mesh: noise must be non-negative and finite, found {sigma}"
+    );
+    cameras
+        .iter()
+        .enumerate()
+        .map(|(k, cam)| {
+            let image = render_depth(mesh, cam);
+            let mut rng = SplitMix64::stream(seed, &[NOISE, frame as u64, k as u64]);
+            unproject_depth(cam, &image, sigma, &mut rng)
+        })
+        .collect()
+}
+
+/// Adds per-camera point lists (as from [`observe_mesh`]) to `obs` at `frame`, with the
+/// camera index and weight 1.
+pub fn record(obs: &mut Observations, frame: usize, per_camera: &[Vec<[f64; 3]>]) {
+    for (k, points) in per_camera.iter().enumerate() {
+        for &p in points {
+            obs.push(
+                frame,
+                ObservedPoint {
+                    position: p,
+                    camera: Some(k as u32),
+                    weight: 1.0,
+                },
+            );
+        }
+    }
+}
+
+pub(crate) fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+pub(crate) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
+    a.map(|x| x * s)
+}
+pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+pub(crate) fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let n = dot(a, a).sqrt();
+    if n > 0.0 {
+        scale(a, 1.0 / n)
+    } else {
+        a
+    }
+}

@@ -1,0 +1,513 @@
+//! The fitted parameters (interface.md: `young`, `poisson`, `density`, `damping_mass`,
+//! `damping_stiffness`, `gravity`, `ground`, `initial_velocity`, plus the extension
+//! `initial_angular_velocity`) and their unconstrained coordinates.
+//!
+//! Optimizers work on an unconstrained vector `x`. Positive quantities are fitted in log space
+//! (`E = e^x`, `rho = e^x`, `alpha_{1,2} = e^x`); the Poisson ratio through a scaled logistic,
+//! `nu = sigmoid(x) / 2`, so it stays inside `(0, 0.5)`; gravity and velocities are linear. The
+//! ground plane `{n . x >= height}` is fitted as two tilt angles and its height:
+//! `n = (-sin a_z cos a_x, cos a_z cos a_x, sin a_x)` (the `y` axis tilted about `x`, then `z`),
+//! regular at the horizontal plane. Gradients are chained from the physical ones
+//! ([`crate::backward::PhysicalGradient`]) with the Lame derivatives (eq. 5.5.5):
+//! `dlambda/dE = nu/((1+nu)(1-2nu))`, `dmu/dE = 1/(2(1+nu))`,
+//! `dlambda/dnu = E(1+2nu^2)/((1+nu)(1-2nu))^2`, `dmu/dnu = -E/(2(1+nu)^2)`.
+
+use crate::backward::PhysicalGradient;
+use cutfem::fem::Model;
+use gpumat::Vec3;
+use std::fmt;
+use std::str::FromStr;
+
+/// Smallest starting value of a damping coefficient fitted in log space (a coefficient of
+/// exactly 0 has no logarithm).
+pub const DAMPING_FLOOR: f64 = 1e-4;
+
+/// One named parameter (group) of the interface's vocabulary.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Param {
+    /// Young's modulus (log)
+    Young,
+    /// Poisson ratio (logistic into (0, 0.5))
+    Poisson,
+    /// density (log)
+    Density,
+    /// Rayleigh mass damping (log)
+    DampingMass,
+    /// Rayleigh stiffness damping (log)
+    DampingStiffness,
+    /// gravity vector (3, linear)
+    Gravity,
+    /// ground plane: two tilt angles and the height (3)
+    Ground,
+    /// initial linear velocity (3, linear)
+    InitialVelocity,
+    /// initial angular velocity about the center of mass (3, linear)
+    InitialAngularVelocity,
+    /// log factors of Young's modulus on the nodes of a coarse trilinear grid
+    StiffnessField,
+}
+
+/// The vocabulary, in the order of [`Param`].
+pub const ALL: [Param; 10] = [
+    Param::Young,
+    Param::Poisson,
+    Param::Density,
+    Param::DampingMass,
+    Param::DampingStiffness,
+    Param::Gravity,
+    Param::Ground,
+    Param::InitialVelocity,
+    Param::InitialAngularVelocity,
+    Param::StiffnessField,
+];
+
+impl Param {
+    /// The interface name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Param::Young => "young",
+            Param::Poisson => "poisson",
+            Param::Density => "density",
+            Param::DampingMass => "damping_mass",
+            Param::DampingStiffness => "damping_stiffness",
+            Param::Gravity => "gravity",
+            Param::Ground => "ground",
+            Param::InitialVelocity => "initial_velocity",
+            Param::InitialAngularVelocity => "initial_angular_velocity",
+            Param::StiffnessField => "stiffness_field",
+        }
+    }
+    /// The names of its components.
+    pub fn components(self) -> Vec<String> {
+        let xyz = |p: &str| ["x", "y", "z"].iter().map(|c| format!("{p}.{c}")).collect();
+        match self {
+            Param::Gravity | Param::InitialVelocity | Param::InitialAngularVelocity => xyz(self.name()),
+            Param::Ground => vec![
+                "ground.angle_x".into(),
+                "ground.angle_z".into(),
+                "ground.height".into(),
+            ],
+            _ => vec![self.name().into()],
+        }
+    }
+}
+
+impl fmt::Display for Param {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Param {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        ALL.iter().copied().find(|p| p.name() == s).ok_or_else(|| {
+            let names: Vec<_> = ALL.iter().map(|p| p.name()).collect();
+            format!("unknown parameter `{s}` (known: {})", names.join(", "))
+        })
+    }
+}
+
+/// The ground normal of tilt angles `(a_x, a_z)` and its derivatives.
+pub fn ground_normal(ax: f64, az: f64) -> (Vec3<f64>, Vec3<f64>, Vec3<f64>) {
+    let (sx, cx, sz, cz) = (ax.sin(), ax.cos(), az.sin(), az.cos());
+    (
+        Vec3::new(-sz * cx, cz * cx, sx),
+        Vec3::new(sz * sx, -cz * sx, cx),
+        Vec3::new(-cz * cx, -sz * cx, 0.0),
+    )
+}
+
+/// The tilt angles of a unit normal.
+pub fn ground_angles(n: Vec3<f64>) -> (f64, f64) {
+    let [x, y, z] = n.to_array();
+    (z.clamp(-1.0, 1.0).asin(), (-x).atan2(y))
+}
+
+/// The coarse trilinear basis of the `stiffness_field` parameter: `nodes` = `(cells+1)^3`
+/// coefficients `c_k` on a grid spanning the active cells' centers, and per active cell the
+/// trilinear weights of its center. The cell factors are `s_e = exp(sum_k w_ek c_k)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FieldBasis {
+    /// coarse cells per axis
+    pub cells: [usize; 3],
+    /// lower corner of the coarse grid
+    pub lo: [f64; 3],
+    /// upper corner
+    pub hi: [f64; 3],
+    /// per active cell: `(coefficient, weight)` of the 8 coarse nodes around its center
+    pub weights: Vec<[(u32, f64); 8]>,
+}
+
+impl FieldBasis {
+    /// The basis with `cells` coarse cells per axis over `grid`'s active cells.
+    pub fn new(grid: &cutfem::fem::Grid, cells: [usize; 3]) -> Result<Self, String> {
+        if cells.iter().any(|&c| c == 0 || c > 64) {
+            return Err(format!(
+                "model.stiffness_field.cells: each must lie in 1..=64, got {cells:?}"
+            ));
+        }
+        let h = grid.h();
+        let centers: Vec<[f64; 3]> = grid
+            .cells
+            .iter()
+            .map(|c| (grid.cell_origin(c) + Vec3::splat(0.5 * h)).to_array())
+            .collect();
+        if centers.is_empty() {
+            return Err("model.stiffness_field: the body has no active cells".into());
+        }
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for c in &centers {
+            for d in 0..3 {
+                lo[d] = lo[d].min(c[d]);
+                hi[d] = hi[d].max(c[d]);
+            }
+        }
+        let (nx, ny) = (cells[0] + 1, cells[1] + 1);
+        let weights = centers
+            .iter()
+            .map(|c| {
+                let mut idx = [0usize; 3];
+                let mut f = [0.0; 3];
+                for d in 0..3 {
+                    let span = (hi[d] - lo[d]).max(1e-12);
+                    let t = ((c[d] - lo[d]) / span * cells[d] as f64).clamp(0.0, cells[d] as f64);
+                    let i = (t.floor() as usize).min(cells[d] - 1);
+                    idx[d] = i;
+                    f[d] = t - i as f64;
+                }
+                std::array::from_fn(|k| {
+                    let b = [k & 1, (k >> 1) & 1, k >> 2];
+                    let node = (idx[0] + b[0]) + nx * ((idx[1] + b[1]) + ny * (idx[2] + b[2]));
+                    let w: f64 = (0..3)
+                        .map(|d| if b[d] == 1 { f[d] } else { 1.0 - f[d] })
+                        .product();
+                    (node as u32, w)
+                })
+            })
+            .collect();
+        Ok(Self {
+            cells,
+            lo,
+            hi,
+            weights,
+        })
+    }
+
+    /// Number of coefficients.
+    pub fn len(&self) -> usize {
+        self.cells.iter().map(|c| c + 1).product()
+    }
+    /// Never empty.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// The coefficient labels `stiffness_field[i,j,k]`.
+    pub fn labels(&self) -> Vec<String> {
+        let [nx, ny, nz] = self.cells.map(|c| c + 1);
+        let mut out = Vec::with_capacity(nx * ny * nz);
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    out.push(format!("stiffness_field[{i},{j},{k}]"));
+                }
+            }
+        }
+        out
+    }
+
+    /// The cell factors `s_e = exp(sum_k w_ek c_k)` of coefficients `c`.
+    pub fn scales(&self, c: &[f64]) -> Vec<f64> {
+        self.weights
+            .iter()
+            .map(|w| w.iter().map(|&(k, wk)| wk * c[k as usize]).sum::<f64>().exp())
+            .collect()
+    }
+
+    /// The gradient with respect to the coefficients of a function with cell-factor gradient
+    /// `g` at cell factors `s`.
+    pub fn chain(&self, s: &[f64], g: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.len()];
+        for ((w, &se), &ge) in self.weights.iter().zip(s).zip(g) {
+            for &(k, wk) in w {
+                out[k as usize] += ge * se * wk;
+            }
+        }
+        out
+    }
+}
+
+/// An ordered set of fitted parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamSet {
+    /// the parameters, in the user's order, without duplicates
+    pub params: Vec<Param>,
+    /// the basis of `stiffness_field`, when fitted
+    pub field: Option<std::sync::Arc<FieldBasis>>,
+}
+
+impl ParamSet {
+    /// Parses a comma-separated list (or a list of names).
+    pub fn parse<S: AsRef<str>>(names: &[S]) -> Result<Self, String> {
+        let mut params = Vec::new();
+        for n in names {
+            for part in n.as_ref().split(',').map(str::trim).filter(|s| !s.is_empty()) {
+                let p: Param = part.parse()?;
+                if params.contains(&p) {
+                    return Err(format!("parameter `{p}` given twice"));
+                }
+                params.push(p);
+            }
+        }
+        if params.is_empty() {
+            return Err("no parameters to fit".into());
+        }
+        Ok(Self { params, field: None })
+    }
+
+    /// Component labels, in the order of `x`.
+    pub fn labels(&self) -> Vec<String> {
+        self.params
+            .iter()
+            .flat_map(|p| match (p, &self.field) {
+                (Param::StiffnessField, Some(f)) => f.labels(),
+                _ => p.components(),
+            })
+            .collect()
+    }
+
+    /// Length of `x`.
+    pub fn len(&self) -> usize {
+        self.labels().len()
+    }
+    /// True when no parameter is fitted.
+    pub fn is_empty(&self) -> bool {
+        self.params.is_empty()
+    }
+
+    /// Checks that the model has what the parameters need (e.g. a ground plane).
+    pub fn check(&self, model: &Model) -> Result<(), String> {
+        if self.params.contains(&Param::StiffnessField) && self.field.is_none() {
+            return Err(
+                "fitting `stiffness_field` needs its basis ([model].stiffness_field = { cells = [...] })"
+                    .into(),
+            );
+        }
+        if self.params.contains(&Param::Ground) && model.ground.is_none() {
+            return Err("fitting `ground` needs a [ground] section and `ground` in [model].effects".into());
+        }
+        Ok(())
+    }
+
+    /// The unconstrained coordinates of the model's current values.
+    pub fn to_x(&self, model: &Model) -> Vec<f64> {
+        let mut x = Vec::new();
+        for p in &self.params {
+            match p {
+                Param::Young => x.push(model.young.ln()),
+                Param::Poisson => {
+                    let s = 2.0 * model.poisson;
+                    x.push((s / (1.0 - s)).ln());
+                }
+                Param::Density => x.push(model.density.ln()),
+                Param::DampingMass => x.push(model.damping_mass.max(DAMPING_FLOOR).ln()),
+                Param::DampingStiffness => x.push(model.damping_stiffness.max(DAMPING_FLOOR).ln()),
+                Param::Gravity => x.extend(model.gravity.to_array()),
+                Param::Ground => {
+                    let g = model.ground.as_ref().expect("checked");
+                    let (ax, az) = ground_angles(g.normal);
+                    x.extend([ax, az, g.height]);
+                }
+                Param::InitialVelocity => x.extend(model.initial_velocity.to_array()),
+                Param::InitialAngularVelocity => x.extend(model.initial_angular_velocity.to_array()),
+                // fits start from the homogeneous material (all factors 1)
+                Param::StiffnessField => x.extend(vec![0.0; self.field.as_ref().expect("checked").len()]),
+            }
+        }
+        x
+    }
+
+    /// Writes the parameters of `x` into `model`.
+    pub fn apply(&self, x: &[f64], model: &mut Model) {
+        let mut k = 0;
+        let mut take = |n: usize| {
+            let s = &x[k..k + n];
+            k += n;
+            s
+        };
+        for p in &self.params {
+            match p {
+                Param::Young => model.young = take(1)[0].exp(),
+                Param::Poisson => model.poisson = 0.5 / (1.0 + (-take(1)[0]).exp()),
+                Param::Density => model.density = take(1)[0].exp(),
+                Param::DampingMass => model.damping_mass = take(1)[0].exp(),
+                Param::DampingStiffness => model.damping_stiffness = take(1)[0].exp(),
+                Param::Gravity => model.gravity = v3(take(3)),
+                Param::Ground => {
+                    let s = take(3);
+                    let g = model.ground.as_mut().expect("checked");
+                    g.normal = ground_normal(s[0], s[1]).0;
+                    g.height = s[2];
+                }
+                Param::InitialVelocity => model.initial_velocity = v3(take(3)),
+                Param::InitialAngularVelocity => model.initial_angular_velocity = v3(take(3)),
+                Param::StiffnessField => {
+                    let f = self.field.as_ref().expect("checked");
+                    model.stiffness_scale = Some(f.scales(take(f.len())).into());
+                }
+            }
+        }
+    }
+
+    /// The physical values, labelled (e.g. `young`, `gravity.y`, `ground.normal.x`).
+    pub fn values(&self, model: &Model) -> Vec<(String, f64)> {
+        let mut out = Vec::new();
+        for p in &self.params {
+            let xyz = |name: &str, v: Vec3<f64>| {
+                let a = v.to_array();
+                ["x", "y", "z"]
+                    .iter()
+                    .zip(a)
+                    .map(|(c, v)| (format!("{name}.{c}"), v))
+                    .collect::<Vec<_>>()
+            };
+            match p {
+                Param::Young => out.push(("young".into(), model.young)),
+                Param::Poisson => out.push(("poisson".into(), model.poisson)),
+                Param::Density => out.push(("density".into(), model.density)),
+                Param::DampingMass => out.push(("damping_mass".into(), model.damping_mass)),
+                Param::DampingStiffness => out.push(("damping_stiffness".into(), model.damping_stiffness)),
+                Param::Gravity => out.extend(xyz("gravity", model.gravity)),
+                Param::Ground => {
+                    let g = model.ground.as_ref().expect("checked");
+                    out.extend(xyz("ground.normal", g.normal));
+                    out.push(("ground.height".into(), g.height));
+                }
+                Param::InitialVelocity => out.extend(xyz("initial_velocity", model.initial_velocity)),
+                Param::InitialAngularVelocity => {
+                    out.extend(xyz("initial_angular_velocity", model.initial_angular_velocity))
+                }
+                Param::StiffnessField => {
+                    // the factors' range: the coefficients themselves are in `x`
+                    let s = model.stiffness_scale.as_deref().unwrap_or(&[]);
+                    let (lo, hi) = s.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                        (a.min(v), b.max(v))
+                    });
+                    out.push((
+                        "stiffness_field.min_factor".into(),
+                        if s.is_empty() { 1.0 } else { lo },
+                    ));
+                    out.push((
+                        "stiffness_field.max_factor".into(),
+                        if s.is_empty() { 1.0 } else { hi },
+                    ));
+                }
+            }
+        }
+        out
+    }
+
+    /// The gradient with respect to `x` of a function whose physical gradient is `g`, at the
+    /// model `model` (which must be `apply(x)`'s result).
+    pub fn chain(&self, model: &Model, g: &PhysicalGradient) -> Vec<f64> {
+        let mut out = Vec::new();
+        let (e, nu) = (model.young, model.poisson);
+        for p in &self.params {
+            match p {
+                Param::Young => {
+                    let dl = nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+                    let dm = 1.0 / (2.0 * (1.0 + nu));
+                    out.push((g.lambda * dl + g.mu * dm) * e);
+                }
+                Param::Poisson => {
+                    let dl = e * (1.0 + 2.0 * nu * nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)).powi(2);
+                    let dm = -e / (2.0 * (1.0 + nu) * (1.0 + nu));
+                    out.push((g.lambda * dl + g.mu * dm) * nu * (1.0 - 2.0 * nu));
+                }
+                Param::Density => out.push(g.density * model.density),
+                Param::DampingMass => out.push(g.damping_mass * model.damping_mass),
+                Param::DampingStiffness => out.push(g.damping_stiffness * model.damping_stiffness),
+                Param::Gravity => out.extend(g.gravity.to_array()),
+                Param::Ground => {
+                    let gr = model.ground.as_ref().expect("checked");
+                    let (ax, az) = ground_angles(gr.normal);
+                    let (_, dx, dz) = ground_normal(ax, az);
+                    out.extend([g.ground_normal.dot(dx), g.ground_normal.dot(dz), g.ground_height]);
+                }
+                Param::InitialVelocity => out.extend(g.initial_velocity.to_array()),
+                Param::InitialAngularVelocity => out.extend(g.initial_angular_velocity.to_array()),
+                Param::StiffnessField => {
+                    let f = self.field.as_ref().expect("checked");
+                    let ones;
+                    let s = match model.stiffness_scale.as_deref() {
+                        Some(s) => s,
+                        None => {
+                            ones = vec![1.0; f.weights.len()];
+                            &ones
+                        }
+                    };
+                    out.extend(f.chain(s, &g.cell_scale));
+                }
+            }
+        }
+        out
+    }
+
+    /// The gradient with respect to the physical values of [`ParamSet::values`] (for reports
+    /// and `gradcheck`): `dJ/dE`, `dJ/dnu`, ..., the ground as `dJ/dn` (free vector) and
+    /// `dJ/dheight`.
+    pub fn physical(&self, model: &Model, g: &PhysicalGradient) -> Vec<(String, f64)> {
+        let mut out = Vec::new();
+        let (e, nu) = (model.young, model.poisson);
+        let xyz = |name: &str, v: Vec3<f64>| {
+            ["x", "y", "z"]
+                .iter()
+                .zip(v.to_array())
+                .map(|(c, v)| (format!("{name}.{c}"), v))
+                .collect::<Vec<_>>()
+        };
+        for p in &self.params {
+            match p {
+                Param::Young => {
+                    let dl = nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+                    let dm = 1.0 / (2.0 * (1.0 + nu));
+                    out.push(("young".into(), g.lambda * dl + g.mu * dm));
+                }
+                Param::Poisson => {
+                    let dl = e * (1.0 + 2.0 * nu * nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)).powi(2);
+                    let dm = -e / (2.0 * (1.0 + nu) * (1.0 + nu));
+                    out.push(("poisson".into(), g.lambda * dl + g.mu * dm));
+                }
+                Param::Density => out.push(("density".into(), g.density)),
+                Param::DampingMass => out.push(("damping_mass".into(), g.damping_mass)),
+                Param::DampingStiffness => out.push(("damping_stiffness".into(), g.damping_stiffness)),
+                Param::Gravity => out.extend(xyz("gravity", g.gravity)),
+                Param::Ground => {
+                    out.extend(xyz("ground.normal", g.ground_normal));
+                    out.push(("ground.height".into(), g.ground_height));
+                }
+                Param::InitialVelocity => out.extend(xyz("initial_velocity", g.initial_velocity)),
+                Param::InitialAngularVelocity => {
+                    out.extend(xyz("initial_angular_velocity", g.initial_angular_velocity))
+                }
+                Param::StiffnessField => {
+                    // per coefficient, at the model's factors (the coefficients are log factors)
+                    let labels = self.field.as_ref().map(|f| f.labels()).unwrap_or_default();
+                    let gx = ParamSet {
+                        params: vec![Param::StiffnessField],
+                        field: self.field.clone(),
+                    }
+                    .chain(model, g);
+                    out.extend(labels.into_iter().zip(gx));
+                }
+            }
+        }
+        out
+    }
+}
+
+fn v3(s: &[f64]) -> Vec3<f64> {
+    Vec3::new(s[0], s[1], s[2])
+}

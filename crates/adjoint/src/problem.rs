@@ -1,0 +1,275 @@
+//! A reconstruction problem: a simulation, the parameters to fit and a cost; its value and its
+//! adjoint gradient (thesis Alg. 5.1 forward, Alg. 5.3 backward).
+//!
+//! The forward pass stores only `u` and `v` per frame and the cost gradient of the observed
+//! frames; the backward pass recomputes `K`, `A` and the contact forces from them (sec. 5.7)
+//! and runs [`crate::backward::step_adjoint`] from the last step to the first:
+//!
+//! ```text
+//! u_bar = dJ/du(T), v_bar = 0
+//! for n = T-1 .. 0:
+//!     g = u_bar + v_bar / (theta dt);   assemble A at (u_n, v_n);   solve A lam = g
+//!     u_bar <- dJ/du(n) - v_bar / (theta dt) + dL/du_n
+//!     v_bar <- -(1-theta)/theta v_bar + dL/dv_n;   p_bar += dL/dp
+//! p_bar += adjoint of the initial velocity (v_bar)
+//! ```
+
+use crate::backward::{initial_velocity_adjoint, step_adjoint, PhysicalGradient};
+use crate::cost::{Cost, FrameCost};
+use crate::params::ParamSet;
+use cutfem::fem::{Model, Simulation};
+use gpumat::{Matrix, Vec3};
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// Why an evaluation failed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ProblemError {
+    /// the forward simulation diverged (non-finite or exploding displacement, failed solve)
+    #[error("forward simulation diverged: {0}")]
+    Diverged(String),
+    /// invalid parameters or inputs
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// The result of one evaluation.
+#[derive(Clone, Debug)]
+pub struct Evaluation {
+    /// total cost
+    pub cost: f64,
+    /// per observed frame
+    pub frames: Vec<FrameCost>,
+    /// the model evaluated
+    pub model: Model,
+    /// seconds in the forward steps
+    pub forward_s: f64,
+    /// seconds in the cost (and its gradient)
+    pub cost_s: f64,
+    /// seconds in the backward pass
+    pub backward_s: f64,
+    /// CG iterations of the forward solves
+    pub forward_iterations: usize,
+    /// CG iterations of the adjoint solves
+    pub backward_iterations: usize,
+    /// direct-solver fallbacks
+    pub fallbacks: usize,
+}
+
+impl Evaluation {
+    /// Root mean square residual over all observed frames.
+    pub fn rms(&self) -> f64 {
+        let (s, n) = self
+            .frames
+            .iter()
+            .fold((0.0, 0usize), |(s, n), f| (s + f.sum_squared, n + f.count));
+        if n == 0 {
+            0.0
+        } else {
+            (s / n as f64).sqrt()
+        }
+    }
+}
+
+/// A reconstruction problem (module docs).
+#[derive(Debug)]
+pub struct Problem {
+    /// the simulation (reset for every evaluation)
+    pub sim: Simulation,
+    /// the model at the start (parameters not fitted keep these values)
+    pub base: Model,
+    /// the fitted parameters
+    pub params: ParamSet,
+    /// the cost
+    pub cost: Box<dyn Cost>,
+    /// number of simulated steps
+    pub steps: usize,
+    /// a displacement larger than this counts as divergence
+    pub divergence_limit: f64,
+}
+
+/// The stored forward trajectory.
+struct Trajectory {
+    u: Vec<Matrix<Vec3<f64>>>,
+    v: Vec<Matrix<Vec3<f64>>>,
+    cost_grad: BTreeMap<usize, Matrix<Vec3<f64>>>,
+}
+
+impl Problem {
+    /// Sets up a problem. Errors when an observed frame lies beyond `steps` or a parameter
+    /// needs an effect the model lacks.
+    pub fn new(
+        sim: Simulation,
+        params: ParamSet,
+        cost: Box<dyn Cost>,
+        steps: usize,
+    ) -> Result<Self, ProblemError> {
+        let base = sim.model.clone();
+        params.check(&base).map_err(ProblemError::Invalid)?;
+        if let Some(&last) = cost.frames().last() {
+            if last > steps {
+                return Err(ProblemError::Invalid(format!(
+                    "observations: frame {last} lies beyond the {steps} simulated steps (raise [time].steps or --steps)"
+                )));
+            }
+        }
+        let size = {
+            let s = &sim.grid.sdf;
+            let d = s.dims;
+            s.spacing * (d[0].max(d[1]).max(d[2])) as f64
+        };
+        Ok(Self {
+            sim,
+            base,
+            params,
+            cost,
+            steps,
+            divergence_limit: 10.0 * size,
+        })
+    }
+
+    /// The starting point in unconstrained coordinates.
+    pub fn x0(&self) -> Vec<f64> {
+        self.params.to_x(&self.base)
+    }
+
+    /// The model at `x`.
+    pub fn model_at(&self, x: &[f64]) -> Model {
+        let mut m = self.base.clone();
+        self.params.apply(x, &mut m);
+        m
+    }
+
+    fn forward(
+        &mut self,
+        model: Model,
+        store: bool,
+    ) -> Result<(Evaluation, Option<Trajectory>), ProblemError> {
+        let t0 = Instant::now();
+        self.sim
+            .reset(model.clone())
+            .map_err(|e| ProblemError::Invalid(e.to_string()))?;
+        let frames = self.cost.frames();
+        let mut ev = Evaluation {
+            cost: 0.0,
+            frames: Vec::new(),
+            model,
+            forward_s: 0.0,
+            cost_s: 0.0,
+            backward_s: 0.0,
+            forward_iterations: 0,
+            backward_iterations: 0,
+            fallbacks: 0,
+        };
+        let mut traj = store.then(|| Trajectory {
+            u: vec![self.sim.u.clone()],
+            v: vec![self.sim.v.clone()],
+            cost_grad: BTreeMap::new(),
+        });
+        let mut cost_s = 0.0;
+        for t in 0..=self.steps {
+            if t > 0 {
+                let info = self
+                    .sim
+                    .step()
+                    .map_err(|e| ProblemError::Diverged(format!("step {t}: {e}")))?;
+                ev.forward_iterations += info.iterations;
+                ev.fallbacks += usize::from(info.fallback);
+                let m = self.sim.max_displacement();
+                if !m.is_finite() || m > self.divergence_limit {
+                    return Err(ProblemError::Diverged(format!(
+                        "step {t}: displacement {m:.3e} exceeds {:.3e}",
+                        self.divergence_limit
+                    )));
+                }
+                if let Some(tr) = &mut traj {
+                    tr.u.push(self.sim.u.clone());
+                    tr.v.push(self.sim.v.clone());
+                }
+            }
+            if frames.binary_search(&t).is_ok() {
+                let tc = Instant::now();
+                let fc = match &mut traj {
+                    Some(tr) => {
+                        let mut g = Matrix::zeros(self.sim.grid.dofs(), 1, 1);
+                        let fc = self.cost.frame_cost(t, &self.sim.u, Some(&mut g));
+                        tr.cost_grad.insert(t, g);
+                        fc
+                    }
+                    None => self.cost.frame_cost(t, &self.sim.u, None),
+                }
+                .map_err(|e| ProblemError::Diverged(format!("frame {t}: {e}")))?;
+                cost_s += tc.elapsed().as_secs_f64();
+                ev.cost += fc.cost;
+                ev.frames.push(fc);
+            }
+        }
+        ev.cost_s = cost_s;
+        ev.forward_s = t0.elapsed().as_secs_f64() - cost_s;
+        Ok((ev, traj))
+    }
+
+    /// The cost of a given model (forward run only).
+    pub fn evaluate_model(&mut self, model: Model) -> Result<Evaluation, ProblemError> {
+        Ok(self.forward(model, false)?.0)
+    }
+
+    /// The cost at `x` (forward run only).
+    pub fn evaluate(&mut self, x: &[f64]) -> Result<Evaluation, ProblemError> {
+        let model = self.model_at(x);
+        Ok(self.forward(model, false)?.0)
+    }
+
+    /// The cost at `x` and its adjoint gradient with respect to `x` (and the physical one).
+    pub fn gradient(&mut self, x: &[f64]) -> Result<(Evaluation, Vec<f64>, PhysicalGradient), ProblemError> {
+        let model = self.model_at(x);
+        let (mut ev, traj) = self.forward(model.clone(), true)?;
+        let mut traj = traj.expect("stored");
+        let tb = Instant::now();
+        let n = self.sim.grid.dofs();
+        let (dt, theta) = (model.dt, model.theta);
+        let mut grad = PhysicalGradient::default();
+        let mut ub = traj
+            .cost_grad
+            .remove(&self.steps)
+            .unwrap_or_else(|| Matrix::zeros(n, 1, 1));
+        let mut vb: Matrix<Vec3<f64>> = Matrix::zeros(n, 1, 1);
+        let mut lam: Matrix<Vec3<f64>> = Matrix::zeros(n, 1, 1);
+        let c = 1.0 / (theta * dt);
+        for step in (0..self.steps).rev() {
+            let g = Matrix::eval(ub.ex() + vb.ex() * c);
+            self.sim.u = traj.u[step].clone();
+            self.sim.v = traj.v[step].clone();
+            self.sim.assemble_system();
+            let (its, _, fallback) = self
+                .sim
+                .solve_newmark(&g, &mut lam)
+                .map_err(|e| ProblemError::Diverged(format!("adjoint step {step}: {e}")))?;
+            ev.backward_iterations += its;
+            ev.fallbacks += usize::from(fallback);
+            let mut new_ub = traj
+                .cost_grad
+                .remove(&step)
+                .unwrap_or_else(|| Matrix::zeros(n, 1, 1));
+            new_ub.assign_with(|u| u - vb.ex() * c);
+            let mut new_vb = Matrix::eval(vb.ex() * (-(1.0 - theta) / theta));
+            step_adjoint(
+                &self.sim,
+                &traj.u[step + 1],
+                &lam,
+                &mut new_ub,
+                &mut new_vb,
+                &mut grad,
+            );
+            ub = new_ub;
+            vb = new_vb;
+            // free what the rest of the pass no longer needs
+            traj.u.truncate(step + 1);
+            traj.v.truncate(step + 1);
+        }
+        initial_velocity_adjoint(&self.sim, &vb, &mut grad);
+        ev.backward_s = tb.elapsed().as_secs_f64();
+        let gx = self.params.chain(&model, &grad);
+        Ok((ev, gx, grad))
+    }
+}

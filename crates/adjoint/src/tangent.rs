@@ -1,0 +1,118 @@
+//! Tangent-linear (forward) sensitivities and the Gauss-Newton matrix (the thesis' sec. 5.6
+//! could not use Gauss-Newton; with few parameters it is cheap).
+//!
+//! For each fitted coordinate `x_k` the sensitivities `S_u = du/dx_k`, `S_v = dv/dx_k` follow
+//! the linearized step (eq. 2.6.2 differentiated):
+//!
+//! ```text
+//! A S_u' = dR,   dR = d/de [ b(u + e S_u, v + e S_v, x + e e_k) - A(...) u' ] at e = 0,
+//! S_v'   = (S_u' - S_u) / (theta dt) - (1 - theta) / theta S_v,
+//! ```
+//!
+//! one extra solve per parameter and step with the same `A` as the forward step. The directional
+//! derivative `dR` of the step residual (with `u'` fixed) is taken by a central difference of
+//! two assemblies (relative accuracy about 1e-8); the solve is exact to the CG tolerance. The
+//! Gauss-Newton matrix is `H = sum_t J_t^T W_t J_t` with `J_t = dr_t/du S_u(t)` from the cost's
+//! linearization ([`crate::cost::Cost::frame_gauss_newton`]); the gradient stays the exact
+//! adjoint one.
+
+use crate::problem::{Evaluation, Problem, ProblemError};
+use cutfem::fem::Model;
+use gpumat::{Matrix, Vec3};
+
+/// Step of the central difference of the step residual, in the unconstrained coordinates.
+const EPS: f64 = 1e-6;
+
+impl Problem {
+    /// The cost, its adjoint gradient and the Gauss-Newton matrix (`n x n`, row-major) at `x`.
+    pub fn gauss_newton(&mut self, x: &[f64]) -> Result<(Evaluation, Vec<f64>, Vec<f64>), ProblemError> {
+        let (ev, g, _) = self.gradient(x)?;
+        let h = self.gauss_newton_matrix(x)?;
+        Ok((ev, g, h))
+    }
+
+    /// The sensitivities `du(t)/dx_k` for every step (index `t`), or only the observed frames'
+    /// Gauss-Newton contributions: returns `H`.
+    pub fn gauss_newton_matrix(&mut self, x: &[f64]) -> Result<Vec<f64>, ProblemError> {
+        let n = x.len();
+        let model = self.model_at(x);
+        let dofs = self.sim.grid.dofs();
+        let frames = self.cost.frames();
+        let (dt, theta) = (model.dt, model.theta);
+        let models: Vec<(Model, Model)> = (0..n)
+            .map(|k| {
+                let mut xp = x.to_vec();
+                xp[k] += EPS;
+                let mut xm = x.to_vec();
+                xm[k] -= EPS;
+                (self.model_at(&xp), self.model_at(&xm))
+            })
+            .collect();
+        // initial sensitivities: u(0) = 0; v(0) depends on the initial-velocity parameters
+        let mut su: Vec<Matrix<Vec3<f64>>> = vec![Matrix::zeros(dofs, 1, 1); n];
+        let mut sv: Vec<Matrix<Vec3<f64>>> = Vec::with_capacity(n);
+        let invalid = |e: cutfem::Error| ProblemError::Invalid(e.to_string());
+        for (mp, mm) in &models {
+            self.sim.reset(mp.clone()).map_err(invalid)?;
+            let vp = self.sim.v.clone();
+            self.sim.reset(mm.clone()).map_err(invalid)?;
+            sv.push(Matrix::eval((vp.ex() - self.sim.v.ex()) * (0.5 / EPS)));
+        }
+        self.sim.reset(model.clone()).map_err(invalid)?;
+        let mut h = vec![0.0; n * n];
+        let add = |h: &mut Vec<f64>, c: Vec<f64>| h.iter_mut().zip(c).for_each(|(a, b)| *a += b);
+        if frames.binary_search(&0).is_ok() {
+            let c = self
+                .cost
+                .frame_gauss_newton(0, &self.sim.u, &su)
+                .map_err(ProblemError::Diverged)?;
+            add(&mut h, c);
+        }
+        let c = 1.0 / (theta * dt);
+        for t in 1..=self.steps {
+            let (u0, v0) = (self.sim.u.clone(), self.sim.v.clone());
+            self.sim
+                .step()
+                .map_err(|e| ProblemError::Diverged(format!("step {t}: {e}")))?;
+            let (u1, v1) = (self.sim.u.clone(), self.sim.v.clone());
+            let mut drs = Vec::with_capacity(n);
+            for k in 0..n {
+                let mut res = [Matrix::zeros(dofs, 1, 1), Matrix::zeros(dofs, 1, 1)];
+                for (side, (m, sign)) in [(&models[k].0, 1.0), (&models[k].1, -1.0)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    self.sim.set_model(m.clone()).map_err(invalid)?;
+                    self.sim.u = Matrix::eval(u0.ex() + su[k].ex() * (sign * EPS));
+                    self.sim.v = Matrix::eval(v0.ex() + sv[k].ex() * (sign * EPS));
+                    self.sim.assemble_system();
+                    res[side] = Matrix::eval(self.sim.newmark_rhs() - self.sim.newmark_matrix() * &u1);
+                }
+                drs.push(Matrix::eval((res[0].ex() - res[1].ex()) * (0.5 / EPS)));
+            }
+            self.sim.set_model(model.clone()).map_err(invalid)?;
+            self.sim.u = u0;
+            self.sim.v = v0;
+            self.sim.assemble_system();
+            for k in 0..n {
+                let mut x = Matrix::eval(su[k].ex() + sv[k].ex() * dt);
+                self.sim
+                    .solve_newmark(&drs[k], &mut x)
+                    .map_err(|e| ProblemError::Diverged(format!("tangent step {t}: {e}")))?;
+                let new_sv = Matrix::eval((x.ex() - su[k].ex()) * c - sv[k].ex() * ((1.0 - theta) / theta));
+                sv[k] = new_sv;
+                su[k] = x;
+            }
+            self.sim.u = u1;
+            self.sim.v = v1;
+            if frames.binary_search(&t).is_ok() {
+                let c = self
+                    .cost
+                    .frame_gauss_newton(t, &self.sim.u, &su)
+                    .map_err(ProblemError::Diverged)?;
+                add(&mut h, c);
+            }
+        }
+        Ok(h)
+    }
+}

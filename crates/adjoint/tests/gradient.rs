@@ -1,0 +1,355 @@
+//! The whole adjoint gradient against central differences of the whole simulation, and a
+//! Taylor test (the remainder `J(x + e d) - J(x) - e g.d` falls as `e^2`), for the displacement
+//! cost (eq. 5.4.1) and the point-cloud cost (eq. 5.4.4) with every effect on.
+
+use adjoint::cost::{Cost, DisplacementCost, ObservedPoint, PointCloudCost, Robust};
+use adjoint::params::ParamSet;
+use adjoint::problem::Problem;
+use cutfem::fem::advect::Diffusion;
+use cutfem::fem::collision::{ContactScheme, Ground};
+use cutfem::fem::{Aabb, Grid, Model, Simulation};
+use cutfem::shapes::Shape;
+use cutfem::surface::extract_surface;
+use gpumat::{Matrix, Vec3};
+
+const STEPS: usize = 8;
+
+fn grid() -> Grid {
+    let shape = Shape::Box {
+        center: [0.0, 0.25, 0.0],
+        size: [0.6, 0.2, 0.2],
+    };
+    Grid::new(shape.to_sdf(10.0, 6).unwrap()).unwrap()
+}
+
+fn truth() -> Model {
+    Model {
+        young: 3000.0,
+        poisson: 0.3,
+        density: 1.0,
+        damping_mass: 0.1,
+        damping_stiffness: 0.01,
+        gravity: Vec3::new(0.0, -10.0, 0.0),
+        ground: Some(Ground {
+            normal: Vec3::new(0.0, 1.0, 0.0),
+            height: 0.14,
+            stiffness: 1e3,
+            softness: 60.0,
+            scheme: ContactScheme::Implicit,
+        }),
+        dirichlet: vec![Aabb {
+            min: [-0.4, 0.0, -0.2],
+            max: [-0.22, 0.5, 0.2],
+        }],
+        initial_velocity: Vec3::new(0.1, -0.3, 0.05),
+        initial_angular_velocity: Vec3::new(0.2, 0.1, -0.3),
+        ..Model::default()
+    }
+}
+
+/// A start model away from the truth in every parameter.
+fn start() -> Model {
+    let mut m = truth();
+    m.young = 3600.0;
+    m.poisson = 0.27;
+    m.density = 1.1;
+    m.damping_mass = 0.13;
+    m.damping_stiffness = 0.012;
+    m.gravity = Vec3::new(0.3, -9.0, -0.2);
+    let g = m.ground.as_mut().unwrap();
+    g.normal = Vec3::new(0.03, 1.0, -0.02) * (1.0 / (1.0f64 + 0.0009 + 0.0004).sqrt());
+    g.height = 0.15;
+    m.initial_velocity = Vec3::new(0.0, -0.2, 0.0);
+    m.initial_angular_velocity = Vec3::new(0.1, 0.0, -0.2);
+    m
+}
+
+fn trajectory(model: Model) -> Vec<Matrix<Vec3<f64>>> {
+    let mut sim = Simulation::new(grid(), model).unwrap();
+    sim.solver.direct = true;
+    let mut out = vec![sim.u.clone()];
+    for _ in 0..STEPS {
+        sim.step().unwrap();
+        out.push(sim.u.clone());
+    }
+    out
+}
+
+fn all_params() -> ParamSet {
+    ParamSet::parse(&[
+        "young,poisson,density,damping_mass,damping_stiffness,gravity,ground,initial_velocity,initial_angular_velocity",
+    ])
+    .unwrap()
+}
+
+fn problem(cost: Box<dyn Cost>, params: ParamSet) -> Problem {
+    let mut sim = Simulation::new(grid(), start()).unwrap();
+    sim.solver.direct = true;
+    Problem::new(sim, params, cost, STEPS).unwrap()
+}
+
+/// Compares each gradient component with central differences at steps 1e-3, 1e-4 and 1e-5
+/// (in the unconstrained coordinates, which are O(1)) and keeps the best agreement: large
+/// steps carry truncation error, small ones the rounding noise of the whole simulation (about
+/// 1e-15 of the cost), which dominates for components much smaller than the others: an
+/// absolute difference below `1e-10 ||g||_inf` also passes (components 1e5 times smaller than
+/// the largest reach that noise floor).
+fn check_against_fd(p: &mut Problem, tol: f64) {
+    let x = p.x0();
+    let (ev, g, _) = p.gradient(&x).unwrap();
+    assert!(ev.cost > 0.0);
+    let labels = p.params.labels();
+    let gmax = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for k in 0..x.len() {
+        let mut best = (f64::INFINITY, 0.0);
+        for eps in [1e-3, 1e-4, 1e-5] {
+            let mut xp = x.clone();
+            xp[k] += eps;
+            let mut xm = x.clone();
+            xm[k] -= eps;
+            let fd = (p.evaluate(&xp).unwrap().cost - p.evaluate(&xm).unwrap().cost) / (2.0 * eps);
+            let err = (g[k] - fd).abs() / g[k].abs().max(fd.abs()).max(1e-300);
+            if err < best.0 {
+                best = (err, fd);
+            }
+        }
+        let (err, fd) = best;
+        let floor = (g[k] - fd).abs() <= 1e-10 * gmax;
+        println!(
+            "{:>28} adjoint {:+.10e} fd {:+.10e} rel {:.2e}{}",
+            labels[k],
+            g[k],
+            fd,
+            err,
+            if floor { " (below the noise floor)" } else { "" }
+        );
+        assert!(
+            err < tol || floor,
+            "{}: adjoint {} vs fd {} (rel {err:.2e})",
+            labels[k],
+            g[k],
+            fd
+        );
+    }
+}
+
+#[test]
+fn displacement_cost_gradient_matches_finite_differences() {
+    let reference = trajectory(truth());
+    let cost = DisplacementCost {
+        reference: (2..=STEPS)
+            .step_by(2)
+            .map(|t| (t, 1.0, reference[t].clone()))
+            .collect(),
+    };
+    let mut p = problem(Box::new(cost), all_params());
+    check_against_fd(&mut p, 1e-6);
+}
+
+#[test]
+fn taylor_remainder_is_second_order() {
+    let reference = trajectory(truth());
+    let cost = DisplacementCost {
+        reference: vec![(STEPS, 1.0, reference[STEPS].clone())],
+    };
+    let mut p = problem(Box::new(cost), all_params());
+    let x = p.x0();
+    let (ev, g, _) = p.gradient(&x).unwrap();
+    let d: Vec<f64> = (0..x.len())
+        .map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.5)
+        .collect();
+    let gd: f64 = g.iter().zip(&d).map(|(a, b)| a * b).sum();
+    let mut prev = f64::NAN;
+    let mut ratios = Vec::new();
+    for i in 0..4 {
+        let e = 1e-2 / 2f64.powi(i);
+        let xe: Vec<f64> = x.iter().zip(&d).map(|(a, b)| a + e * b).collect();
+        let r = (p.evaluate(&xe).unwrap().cost - ev.cost - e * gd).abs();
+        if prev.is_finite() {
+            ratios.push(prev / r);
+        }
+        prev = r;
+    }
+    println!("Taylor remainder ratios (expect 4): {ratios:?}");
+    for r in ratios {
+        assert!((3.5..4.5).contains(&r), "remainder ratio {r}");
+    }
+}
+
+#[test]
+fn point_cloud_cost_gradient_matches_finite_differences() {
+    // observations: the truth's deformed surface vertices
+    let g = grid();
+    let surface = extract_surface(&g.sdf);
+    let reference = trajectory(truth());
+    let frames: Vec<(usize, Vec<ObservedPoint>)> = (2..=STEPS)
+        .step_by(3)
+        .map(|t| {
+            let u = &reference[t];
+            let mesh = surface.deformed(|node| {
+                let d = g.node_dofs[node];
+                if d == cutfem::fem::grid::INACTIVE {
+                    [0.0; 3]
+                } else {
+                    u.get(d as usize, 0, 0).to_array()
+                }
+            });
+            let pts = mesh
+                .vertices
+                .iter()
+                .step_by(3)
+                .map(|v| ObservedPoint {
+                    position: Vec3::new(v[0], v[1], v[2]),
+                    weight: 1.0,
+                })
+                .collect();
+            (t, pts)
+        })
+        .collect();
+    let mut band = Diffusion::new(&g).unwrap();
+    band.params.tolerance = 1e-14;
+    let cost = PointCloudCost::new(&g, band, frames, Robust::Squared);
+    assert!(cost.candidate_cells() > 0);
+    let params = ParamSet::parse(&["young,poisson,gravity,damping_mass"]).unwrap();
+    let mut p = problem(Box::new(cost), params);
+    let ev = p.evaluate(&p.x0()).unwrap();
+    let outside: usize = ev.frames.iter().map(|f| f.outside).sum();
+    println!("rms {} outside {outside}", ev.rms());
+    check_against_fd(&mut p, 1e-6);
+}
+
+/// At the truth (zero residuals) the Gauss-Newton matrix from the tangent-linear sensitivities
+/// is the exact Hessian: compare with central differences of the adjoint gradient.
+#[test]
+fn gauss_newton_matrix_is_the_hessian_at_zero_residual() {
+    let reference = trajectory(truth());
+    let cost = DisplacementCost {
+        reference: (2..=STEPS)
+            .step_by(2)
+            .map(|t| (t, 1.0, reference[t].clone()))
+            .collect(),
+    };
+    let params = ParamSet::parse(&["young,poisson,density,gravity,ground,initial_velocity"]).unwrap();
+    let mut sim = Simulation::new(grid(), truth()).unwrap();
+    sim.solver.direct = true;
+    let mut p = Problem::new(sim, params, Box::new(cost), STEPS).unwrap();
+    let x = p.x0();
+    let n = x.len();
+    let h = p.gauss_newton_matrix(&x).unwrap();
+    let eps = 1e-4;
+    let mut hmax = 0.0f64;
+    let mut fd = vec![0.0; n * n];
+    for b in 0..n {
+        let mut xp = x.clone();
+        xp[b] += eps;
+        let mut xm = x.clone();
+        xm[b] -= eps;
+        let (gp, gm) = (p.gradient(&xp).unwrap().1, p.gradient(&xm).unwrap().1);
+        for a in 0..n {
+            fd[a * n + b] = (gp[a] - gm[a]) / (2.0 * eps);
+            hmax = hmax.max(fd[a * n + b].abs());
+        }
+    }
+    let labels = p.params.labels();
+    for a in 0..n {
+        for b in 0..n {
+            let (an, f) = (h[a * n + b], fd[a * n + b]);
+            let err = (an - f).abs() / hmax;
+            assert!(
+                err < 1e-5,
+                "H[{}][{}]: tangent {an} vs fd {f} (rel to max {err:.1e})",
+                labels[a],
+                labels[b]
+            );
+        }
+    }
+}
+
+/// Observations: every third vertex of the truth's deformed surface at frames 2, 5, 8.
+fn surface_observations(g: &Grid) -> Vec<(usize, Vec<ObservedPoint>)> {
+    let surface = extract_surface(&g.sdf);
+    let reference = trajectory(truth());
+    (2..=STEPS)
+        .step_by(3)
+        .map(|t| {
+            let u = &reference[t];
+            let mesh = surface.deformed(|node| {
+                let d = g.node_dofs[node];
+                if d == cutfem::fem::grid::INACTIVE {
+                    [0.0; 3]
+                } else {
+                    u.get(d as usize, 0, 0).to_array()
+                }
+            });
+            let pts = mesh
+                .vertices
+                .iter()
+                .step_by(3)
+                .map(|v| ObservedPoint {
+                    position: Vec3::new(v[0], v[1], v[2]),
+                    weight: 1.0,
+                })
+                .collect();
+            (t, pts)
+        })
+        .collect()
+}
+
+#[test]
+fn surface_cost_gradient_matches_finite_differences_and_vanishes_at_the_truth() {
+    use adjoint::cost_mesh::SurfaceCost;
+    let g = grid();
+    let frames = surface_observations(&g);
+    // at the truth, points on the simulated surface have zero residual
+    let cost = SurfaceCost::new(&g, frames.clone(), Robust::Squared).unwrap();
+    let mut sim = Simulation::new(grid(), truth()).unwrap();
+    sim.solver.direct = true;
+    let params = ParamSet::parse(&["young,poisson,gravity,damping_mass,ground"]).unwrap();
+    let mut p = Problem::new(sim, params.clone(), Box::new(cost), STEPS).unwrap();
+    let ev = p.evaluate(&p.x0()).unwrap();
+    assert!(ev.rms() < 1e-12, "rms at the truth {}", ev.rms());
+    // away from it, the adjoint gradient matches central differences
+    let cost = SurfaceCost::new(&g, frames, Robust::Squared).unwrap();
+    let mut p = problem(Box::new(cost), params);
+    let ev = p.evaluate(&p.x0()).unwrap();
+    println!("surface cost rms at the start {}", ev.rms());
+    assert_eq!(ev.frames.iter().map(|f| f.outside).sum::<usize>(), 0);
+    check_against_fd(&mut p, 1e-6);
+}
+
+/// A heterogeneous Young's modulus: the gradient of the field's coefficients (log factors on
+/// a coarse trilinear grid) matches central differences.
+#[test]
+fn stiffness_field_gradient_matches_finite_differences() {
+    use adjoint::params::FieldBasis;
+    let g = grid();
+    let basis = FieldBasis::new(&g, [2, 1, 1]).unwrap();
+    // truth: the free end twice as stiff
+    let c_true: Vec<f64> = (0..basis.len())
+        .map(|k| if k % 3 == 2 { 0.7 } else { 0.0 })
+        .collect();
+    let mut truth_model = truth();
+    truth_model.stiffness_scale = Some(basis.scales(&c_true).into());
+    let reference = {
+        let mut sim = Simulation::new(grid(), truth_model).unwrap();
+        sim.solver.direct = true;
+        let mut out = vec![sim.u.clone()];
+        for _ in 0..STEPS {
+            sim.step().unwrap();
+            out.push(sim.u.clone());
+        }
+        out
+    };
+    let cost = DisplacementCost {
+        reference: (2..=STEPS)
+            .step_by(2)
+            .map(|t| (t, 1.0, reference[t].clone()))
+            .collect(),
+    };
+    let mut params = ParamSet::parse(&["young,stiffness_field"]).unwrap();
+    params.field = Some(basis.into());
+    let mut sim = Simulation::new(grid(), truth()).unwrap();
+    sim.solver.direct = true;
+    let mut p = Problem::new(sim, params, Box::new(cost), STEPS).unwrap();
+    check_against_fd(&mut p, 1e-6);
+}

@@ -1,0 +1,319 @@
+//! `softbody fit SCENE --observations OBS.csv [--params a,b] [--optimizer X] [--iterations N]
+//! [--out DIR] [--resume] [--json]`: parameter reconstruction with adjoint gradients.
+//!
+//! Every iteration is appended to `DIR/fit.log` (one JSON object per line) as soon as it
+//! completes, so an interrupted fit loses nothing; `--resume` continues from the log's last
+//! iteration. The report folder gets `fit.json` and PNG plots of the cost and the parameters per
+//! iteration and of the rms per frame before and after.
+
+use crate::progress;
+use adjoint::cost::Robust;
+use adjoint::fit::{check_observations, find_evaluation, scene_problem, FitObjective};
+use adjoint::observations::Observations;
+use adjoint::optim::{minimize, OptimParams, Optimizer};
+use adjoint::params::ParamSet;
+use adjoint::problem::Evaluation;
+use cutfem::scene::Scene;
+use serde_json::{json, Map, Value};
+use std::io::Write;
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Arguments of `fit`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The scene file (TOML): the model to fit and its starting values.
+    pub scene: PathBuf,
+    /// Observed surface points (CSV: frame,x,y,z[,camera][,weight]).
+    #[arg(long)]
+    pub observations: PathBuf,
+    /// Parameters to fit, comma separated (default: [fit].parameters, else young,poisson).
+    #[arg(long)]
+    pub params: Option<String>,
+    /// lbfgs | gd | gauss-newton (default: [fit].optimizer, else lbfgs).
+    #[arg(long)]
+    pub optimizer: Option<String>,
+    /// Maximum iterations (default: [fit].iterations, else 30).
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Report folder (default: out/<scene>-fit).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Continue the fit logged in the report folder.
+    #[arg(long)]
+    pub resume: bool,
+    /// Huber loss threshold (world units) against outliers (default: squared distances).
+    #[arg(long)]
+    pub huber: Option<f64>,
+    /// Override `[time].steps`.
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// surface (distance to the simulated surface mesh) | levelset (the thesis' phi(t)(x), eq. 5.4.4).
+    #[arg(long, default_value = "surface")]
+    pub cost: String,
+    /// Print exactly one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The `[fit]` section of a scene.
+#[derive(Debug, Default)]
+pub struct FitSection {
+    /// parameters
+    pub parameters: Option<Vec<String>>,
+    /// optimizer
+    pub optimizer: Option<String>,
+    /// iterations
+    pub iterations: Option<usize>,
+}
+
+/// Reads `[fit]`; unknown keys and wrong types are errors naming the key.
+pub fn fit_section(scene: &Scene) -> Result<FitSection, String> {
+    let mut out = FitSection::default();
+    let Some(v) = &scene.fit else { return Ok(out) };
+    let file = scene.path.display();
+    let table = v
+        .as_table()
+        .ok_or_else(|| format!("{file}: [fit] must be a table"))?;
+    for (k, v) in table {
+        match k.as_str() {
+            "parameters" => {
+                let arr = v
+                    .as_array()
+                    .ok_or_else(|| format!("{file}: [fit].parameters must be a list of names"))?;
+                let names = arr
+                    .iter()
+                    .map(|s| s.as_str().map(str::to_string))
+                    .collect::<Option<Vec<_>>>()
+                    .ok_or_else(|| format!("{file}: [fit].parameters must be a list of names"))?;
+                out.parameters = Some(names);
+            }
+            "optimizer" => {
+                out.optimizer = Some(
+                    v.as_str()
+                        .ok_or_else(|| format!("{file}: [fit].optimizer must be a string"))?
+                        .to_string(),
+                )
+            }
+            "iterations" => {
+                let n = v
+                    .as_integer()
+                    .filter(|&n| n >= 0)
+                    .ok_or_else(|| format!("{file}: [fit].iterations must be a non-negative integer"))?;
+                out.iterations = Some(n as usize);
+            }
+            other => {
+                return Err(format!(
+                    "{file}: [fit].{other}: unknown key (known: parameters, optimizer, iterations)"
+                ))
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// `{name: value}` of the fitted physical parameters.
+pub fn values_json(values: &[(String, f64)]) -> Value {
+    Value::Object(
+        values
+            .iter()
+            .map(|(k, v)| (k.clone(), json!(v)))
+            .collect::<Map<_, _>>(),
+    )
+}
+
+/// `[{frame, rms, points, outside}]` of an evaluation.
+pub fn per_frame_json(ev: &Evaluation) -> Value {
+    Value::Array(
+        ev.frames
+            .iter()
+            .map(|f| json!({"frame": f.frame, "rms": f.rms(), "points": f.count, "outside": f.outside}))
+            .collect(),
+    )
+}
+
+fn read_log(path: &Path) -> Result<Vec<Value>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| serde_json::from_str(l).map_err(|e| format!("{}:{}: {e}", path.display(), i + 1)))
+        .collect()
+}
+
+/// Runs `fit`.
+pub fn run(args: Args) -> Result<(), String> {
+    let t0 = Instant::now();
+    let scene = Scene::load(&args.scene).map_err(|e| e.to_string())?;
+    let section = fit_section(&scene)?;
+    let names: Vec<String> = match (&args.params, &section.parameters) {
+        (Some(p), _) => vec![p.clone()],
+        (None, Some(p)) => p.clone(),
+        (None, None) => vec!["young,poisson".into()],
+    };
+    let params = ParamSet::parse(&names).map_err(|e| format!("--params: {e}"))?;
+    let optimizer: Optimizer = args
+        .optimizer
+        .clone()
+        .or(section.optimizer.clone())
+        .unwrap_or_else(|| "lbfgs".into())
+        .parse()
+        .map_err(|e| format!("--optimizer: {e}"))?;
+    let iterations = args.iterations.or(section.iterations).unwrap_or(30);
+    let robust = match args.huber {
+        Some(d) if d > 0.0 && d.is_finite() => Robust::Huber(d),
+        Some(d) => return Err(format!("--huber: the threshold must be positive, got {d}")),
+        None => Robust::Squared,
+    };
+    let kind: adjoint::fit::CostKind = args.cost.parse().map_err(|e| format!("--cost: {e}"))?;
+    let obs = Observations::read_csv(&args.observations).map_err(|e| e.to_string())?;
+    adjoint::fit::check_frames(&obs, &args.observations, args.steps.unwrap_or(scene.time.steps))?;
+    if obs.is_empty() {
+        return Err(format!("{}: no observed points", args.observations.display()));
+    }
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| crate::simulate::default_out(&args.scene, "fit"));
+    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let log_path = out.join("fit.log");
+
+    let mut problem = scene_problem(&scene, &obs, params.clone(), robust, args.steps, kind)?;
+    let x_start = problem.x0();
+    let initial_values = params.values(&problem.model_at(&x_start));
+
+    // resume: continue from the last logged iteration
+    let mut history: Vec<Value> = Vec::new();
+    let mut x0 = x_start.clone();
+    if args.resume {
+        if log_path.exists() {
+            history = read_log(&log_path)?;
+        }
+        if let Some(last) = history.last() {
+            let xs: Option<Vec<f64>> = last["x"]
+                .as_array()
+                .and_then(|a| a.iter().map(Value::as_f64).collect());
+            match xs {
+                Some(xs) if xs.len() == x0.len() => x0 = xs,
+                _ => {
+                    return Err(format!(
+                        "{}: the last entry does not match the fitted parameters {}",
+                        log_path.display(),
+                        params.labels().join(",")
+                    ))
+                }
+            }
+        }
+    } else if log_path.exists() {
+        std::fs::remove_file(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
+    }
+    // iteration numbers continue the log; a resumed run's iteration 0 repeats its last entry
+    let resumed = !history.is_empty();
+    let offset = history
+        .last()
+        .and_then(|h| h["iteration"].as_u64())
+        .map_or(0, |v| v as usize);
+
+    // the start: rms per frame before fitting (and the observations' sanity)
+    let ev_initial = check_observations(&mut problem, &obs, &args.observations)?;
+
+    let bar = progress::bar(iterations as u64 + 1, "fit", args.json);
+    let mut log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&log_path)
+        .map_err(|e| format!("{}: {e}", log_path.display()))?;
+    let base = problem.base.clone();
+    let model_at = |x: &[f64]| {
+        let mut m = base.clone();
+        params.apply(x, &mut m);
+        m
+    };
+    let mut objective = FitObjective::new(&mut problem);
+    let evaluations = objective.evaluations.clone();
+    let oparams = OptimParams {
+        max_iterations: iterations,
+        ..OptimParams::default()
+    };
+    let mut log_error = None;
+    let result = minimize(optimizer, &mut objective, &x0, &oparams, &mut |rec| {
+        let ev = find_evaluation(&evaluations, &rec.x);
+        let entry = json!({
+            "iteration": offset + rec.iteration,
+            "cost": rec.cost,
+            "rms": ev.as_ref().map(Evaluation::rms),
+            "gradient_norm": rec.gradient_norm,
+            "evaluations": rec.evaluations,
+            "parameters": values_json(&params.values(&model_at(&rec.x))),
+            "x": rec.x,
+        });
+        if !(resumed && rec.iteration == 0) {
+            if let Err(e) = writeln!(log, "{entry}").and_then(|_| log.flush()) {
+                log_error = Some(format!("{}: {e}", log_path.display()));
+                return ControlFlow::Break(());
+            }
+            history.push(entry);
+        }
+        bar.set_position(rec.iteration as u64 + 1);
+        bar.set_message(format!("fit {:.3e}", rec.cost));
+        ControlFlow::Continue(())
+    });
+    bar.finish_and_clear();
+    if let Some(e) = log_error {
+        return Err(e);
+    }
+    let (x_best, info) = match result {
+        Ok(r) => r,
+        Err(e) => return Err(format!("fit: {e}")),
+    };
+    let ev_final = match objective.evaluation_at(&x_best) {
+        Some(e) => e,
+        None => objective
+            .problem
+            .evaluate(&x_best)
+            .map_err(|e| format!("the fitted model: {e}"))?,
+    };
+    let model = objective.problem.model_at(&x_best);
+    let final_values = params.values(&model);
+    let files = crate::fit_report::write(&out, &history, &initial_values, &ev_initial, &ev_final)?;
+    let summary = json!({
+        "scene": args.scene,
+        "observations": args.observations,
+        "optimizer": optimizer.to_string(),
+        "parameters": values_json(&final_values),
+        "initial_parameters": values_json(&initial_values),
+        "cost": {"initial": ev_initial.cost, "final": ev_final.cost},
+        "rms": {"initial": ev_initial.rms(), "final": ev_final.rms()},
+        "iterations": history.len().saturating_sub(1),
+        "evaluations": info.evaluations,
+        "termination": info.termination.to_string(),
+        "converged": info.termination.is_converged(),
+        "per_frame": {"initial": per_frame_json(&ev_initial), "final": per_frame_json(&ev_final)},
+        "history": history,
+        "seconds": t0.elapsed().as_secs_f64(),
+        "out": out,
+        "files": files,
+    });
+    let path = out.join("fit.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    if args.json {
+        println!("{summary}");
+    } else {
+        eprintln!(
+            "fit: {} after {} iterations ({}); rms {:.4e} -> {:.4e}",
+            final_values
+                .iter()
+                .map(|(k, v)| format!("{k}={v:.6}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+            summary["iterations"],
+            info.termination,
+            ev_initial.rms(),
+            ev_final.rms()
+        );
+        eprintln!("report: {}", out.display());
+    }
+    Ok(())
+}

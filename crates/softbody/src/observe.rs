@@ -1,0 +1,284 @@
+//! `softbody observe SCENE [--out OBS.csv] [--cameras N] [--pixels W] [--noise SIGMA]
+//! [--seed S] ...`: virtual RGB-D cameras look at the simulated body and the points they see
+//! are written as an observation CSV (`frame,x,y,z,camera`, interface.md).
+//!
+//! The scene is simulated as by `simulate` (every effect of its model); at each observed
+//! frame the reference marching-cubes surface moved by the interpolated displacements
+//! ([`deformed_surface`]) is rendered by every camera of the rig (`adjoint::observe`: cameras
+//! at distance `--radius` from the centre of the body's reference bounding box, polar angle
+//! from +y uniform in [pi/6, pi/2], azimuth uniform in [0, 2 pi), drawn from `--seed`),
+//! Gaussian noise of standard deviation `--noise` is added to every depth, and the pixels
+//! are unprojected to world points. Frames 1..=steps are observed (the states after each
+//! step); `--include-reference` adds frame 0, `--frames` picks a list instead.
+
+use crate::progress;
+use crate::simulate::{default_out, deformed_surface};
+use adjoint::observations::Observations;
+use adjoint::observe::{observe_mesh, place_cameras, record, render_depth, Camera, RigParams};
+use cutfem::fem::{Grid, Simulation};
+use cutfem::render::{viridis, Image};
+use cutfem::scene::Scene;
+use cutfem::surface::extract_surface;
+use cutfem::TriMesh;
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `observe`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The scene file (TOML, see interface.md).
+    pub scene: PathBuf,
+    /// Output CSV file (default: `out/<scene name>-observe/observations.csv`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Number of cameras.
+    #[arg(long, default_value_t = 4)]
+    pub cameras: usize,
+    /// Image side in pixels: every camera renders W x W depths.
+    #[arg(long, default_value_t = 32)]
+    pub pixels: usize,
+    /// Standard deviation of the Gaussian depth noise, in world units.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub noise: f64,
+    /// Seed of the camera placement and the noise.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Distance of the cameras from the centre of the body's reference bounding box.
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
+    pub radius: f64,
+    /// Field of view of the cameras in degrees.
+    #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
+    pub fov: f64,
+    /// Override `[time].steps`.
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// Frames to observe instead of 1..=steps, e.g. `0,5,10-20` (frame f = after f steps).
+    #[arg(long)]
+    pub frames: Option<String>,
+    /// Also observe frame 0, the reference configuration.
+    #[arg(long)]
+    pub include_reference: bool,
+    /// Also write a PNG of every camera's depth image at the last observed frame.
+    #[arg(long)]
+    pub preview: Option<PathBuf>,
+    /// Print exactly one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Parses `0,5,10-20` into sorted, distinct frame numbers.
+fn parse_frames(s: &str) -> Result<Vec<usize>, String> {
+    let bad = |part: &str| format!("--frames: {part:?} is not a frame number or a range a-b");
+    let mut out = Vec::new();
+    for part in s.split(',').map(str::trim) {
+        let num = |t: &str| t.trim().parse::<usize>().map_err(|_| bad(part));
+        match part.split_once('-') {
+            Some((a, b)) => {
+                let (a, b) = (num(a)?, num(b)?);
+                if a > b {
+                    return Err(format!("--frames: empty range {part:?}"));
+                }
+                out.extend(a..=b);
+            }
+            None => out.push(num(part)?),
+        }
+    }
+    out.sort_unstable();
+    out.dedup();
+    Ok(out)
+}
+
+/// The depth images of all cameras side by side (viridis, near = dark), each at least
+/// 128 pixels wide.
+fn preview(mesh: &TriMesh, cameras: &[Camera], frame: usize) -> Image {
+    let tiles: Vec<Image> = cameras
+        .iter()
+        .enumerate()
+        .map(|(k, cam)| {
+            let d = render_depth(mesh, cam);
+            let hit = d.depth.iter().copied().filter(|z| z.is_finite());
+            let lo = hit.clone().fold(f64::INFINITY, f64::min);
+            let hi = hit.fold(f64::NEG_INFINITY, f64::max);
+            let s = 128usize.div_ceil(d.width.max(1)).max(1);
+            let mut img = Image::new(d.width * s, d.height * s, [40, 40, 40]);
+            for j in 0..d.height {
+                for i in 0..d.width {
+                    let z = d.depth[j * d.width + i];
+                    if z.is_finite() {
+                        let t = if hi > lo { (z - lo) / (hi - lo) } else { 0.5 };
+                        img.fill_rect(i * s, j * s, s, s, viridis(t));
+                    }
+                }
+            }
+            img.label(&format!("cam {k} f {frame}"));
+            img
+        })
+        .collect();
+    Image::tile(&tiles, tiles.len().min(4))
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<(), String> {
+    let t_total = Instant::now();
+    if !(a.noise.is_finite() && a.noise >= 0.0) {
+        return Err(format!(
+            "--noise must be a non-negative number, found {}",
+            a.noise
+        ));
+    }
+    let rig = RigParams {
+        cameras: a.cameras,
+        pixels: a.pixels,
+        radius: a.radius,
+        fov_y: a.fov.to_radians(),
+        seed: a.seed,
+        ..RigParams::default()
+    };
+    // sizes a machine can hold (a W x W depth image is 8 W^2 bytes per camera)
+    if a.pixels > 8192 {
+        return Err(format!("--pixels must be at most 8192, found {}", a.pixels));
+    }
+    if a.cameras > 10_000 {
+        return Err(format!("--cameras must be at most 10000, found {}", a.cameras));
+    }
+    // the messages start with the field's name; name the flag instead
+    rig.validate()
+        .map_err(|e| format!("--{}", e.replacen("fov_y", "fov", 1)))?;
+    let scene = Scene::load(&a.scene).map_err(|e| e.to_string())?;
+    let steps = a.steps.unwrap_or(scene.time.steps);
+    let mut frames = match &a.frames {
+        Some(s) => parse_frames(s)?,
+        None => (1..=steps).collect(),
+    };
+    if a.include_reference && frames.first() != Some(&0) {
+        frames.insert(0, 0);
+    }
+    let Some(&last) = frames.last() else {
+        return Err("no frame to observe (steps is 0; add --include-reference for frame 0)".into());
+    };
+    if last > steps {
+        return Err(format!(
+            "--frames: frame {last} is beyond the {steps} steps simulated"
+        ));
+    }
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| default_out(&a.scene, "observe").join("observations.csv"));
+    // fail on an unwritable output before simulating
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    std::fs::File::create(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+
+    let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
+    let grid = Grid::new(sdf).map_err(|e| format!("{}: {e}", a.scene.display()))?;
+    let mut sim =
+        Simulation::new(grid, scene.to_model()).map_err(|e| format!("{}: {e}", a.scene.display()))?;
+    sim.solver.cg.tolerance = scene.numerics.cg_tolerance;
+    sim.solver.cg.max_iterations = scene.numerics.cg_max_iterations;
+    let surface = extract_surface(&sim.grid.sdf);
+    let (lo, hi) = surface
+        .mesh
+        .bounding_box()
+        .ok_or_else(|| format!("{}: the body has no surface to observe", a.scene.display()))?;
+    let target = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
+    let cameras = place_cameras(target, &rig);
+
+    let mut obs = Observations::new();
+    let (mut t_sim, mut t_obs) = (0.0, 0.0);
+    let mut observe = |f: usize, mesh: &TriMesh, obs: &mut Observations| {
+        let t = Instant::now();
+        record(obs, f, &observe_mesh(mesh, &cameras, a.noise, a.seed, f));
+        t_obs += t.elapsed().as_secs_f64();
+    };
+    let mut last_mesh = None;
+    let mut keep = |f: usize, mesh: TriMesh, obs: &mut Observations| {
+        if frames.binary_search(&f).is_ok() {
+            observe(f, &mesh, obs);
+            if f == last {
+                last_mesh = Some(mesh);
+            }
+        }
+    };
+    keep(0, deformed_surface(&surface, &sim.grid, &sim.u), &mut obs);
+    let pb = progress::bar(last as u64, "observe", a.json);
+    for f in 1..=last {
+        let t = Instant::now();
+        sim.step().map_err(|e| format!("step {f}: {e}"))?;
+        if !sim.u.as_slice().iter().all(gpumat::Scalar::is_finite) {
+            return Err(format!(
+                "step {f}: the simulation diverged (non-finite displacement); reduce time.dt"
+            ));
+        }
+        t_sim += t.elapsed().as_secs_f64();
+        keep(f, deformed_surface(&surface, &sim.grid, &sim.u), &mut obs);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    obs.write_csv(&out).map_err(|e| e.to_string())?;
+
+    let preview_path = match (&a.preview, &last_mesh) {
+        (Some(p), Some(mesh)) => {
+            preview(mesh, &cameras, last)
+                .save_png(p)
+                .map_err(|e| e.to_string())?;
+            Some(p.display().to_string())
+        }
+        _ => None,
+    };
+    let per_frame: Vec<usize> = frames.iter().map(|&f| obs.frame(f).len()).collect();
+    let mut per_camera = vec![0usize; cameras.len()];
+    for (_, pts) in obs.frames() {
+        for p in pts {
+            per_camera[p.camera.unwrap_or(0) as usize] += 1;
+        }
+    }
+    let poses: Vec<_> = cameras
+        .iter()
+        .zip(rig.angles())
+        .map(|(c, [theta, phi])| json!({"eye": c.eye, "target": c.target, "theta": theta, "phi": phi}))
+        .collect();
+    let min = per_frame.iter().copied().min().unwrap_or(0);
+    let max = per_frame.iter().copied().max().unwrap_or(0);
+    let mean = obs.len() as f64 / frames.len() as f64;
+    let summary = json!({
+        "scene": a.scene.display().to_string(),
+        "out": out.display().to_string(),
+        "points": obs.len(),
+        "frames": frames.len(),
+        "first_frame": frames[0],
+        "last_frame": last,
+        "cameras": cameras.len(),
+        "camera_poses": poses,
+        "target": target,
+        "pixels": a.pixels,
+        "fov_degrees": a.fov,
+        "radius": a.radius,
+        "noise": a.noise,
+        "seed": a.seed,
+        "steps": last,
+        "points_per_frame": {"min": min, "max": max, "mean": mean},
+        "points_per_camera": per_camera,
+        "preview": preview_path,
+        "seconds": {"simulation": t_sim, "observation": t_obs, "total": t_total.elapsed().as_secs_f64()},
+    });
+    if a.json {
+        println!("{summary}");
+    } else {
+        eprintln!(
+            "observed {} points in {} frames ({min}..{max} per frame) with {} cameras of {}x{} pixels, \
+             noise {}, seed {}; written to {}",
+            obs.len(),
+            frames.len(),
+            cameras.len(),
+            a.pixels,
+            a.pixels,
+            a.noise,
+            a.seed,
+            out.display()
+        );
+    }
+    Ok(())
+}
