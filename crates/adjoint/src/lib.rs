@@ -1,4 +1,26 @@
-//! adjoint: gradients and parameter reconstruction (thesis ch. 5). Not implemented yet: see issue 4.
+//! adjoint: exact gradients through the whole soft-body simulation and parameter
+//! reconstruction from observed surface points (thesis ch. 5).
+//!
+//! The layers, from the bottom:
+//!
+//! * [`local`]: the adjoints of the per-cell and per-crossing stages (polar decomposition
+//!   eq. 4.4.9 / 5.5.4, the corotated elastic term and the Lame parameters 5.5.5, contact
+//!   Alg. 5.5), each checked against central differences in `tests/local.rs`;
+//! * [`backward`]: the backward twin of `cutfem::fem::Simulation::step` (Alg. 5.3, sec.
+//!   5.5.3-5.5.6): one adjoint solve with the same symmetric Newmark matrix per step, and the
+//!   derivatives of `lam^T (b - A u')`;
+//! * [`cost`] (displacements eq. 5.4.1, the thesis' level-set point-cloud cost 5.4.4 with
+//!   Alg. 5.2 and the adjoint of the diffusion 5.5.2, Huber) and [`cost_mesh`] (distance to
+//!   the simulated surface mesh);
+//! * [`params`]: the interface's parameter vocabulary in unconstrained coordinates (log,
+//!   logistic, tilt angles, a coarse trilinear stiffness field);
+//! * [`problem`]: forward pass storing `u, v` per step, backward pass recomputing `K`, `A`
+//!   and the contact forces (sec. 5.7); [`tangent`]: tangent-linear sensitivities and the
+//!   Gauss-Newton matrix;
+//! * [`optim`]: Barzilai-Borwein gradient descent, L-BFGS, Levenberg-Marquardt, all
+//!   tolerant of diverging evaluations;
+//! * [`observe`] and [`observations`]: virtual RGB-D cameras and the observation CSV;
+//! * [`fit`]: a scene's reconstruction problem, the optimizer objective, `gradcheck`.
 
 pub mod backward;
 pub mod cost;

@@ -9,6 +9,7 @@ pub mod peers;
 pub mod problems;
 pub mod report;
 pub mod stream;
+pub mod table_adjoint;
 pub mod table_lincomb;
 pub mod table_sparse;
 pub mod thesis;

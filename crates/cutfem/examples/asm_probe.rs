@@ -103,6 +103,33 @@ fn main() {
         };
         println!("in-sim means: grid {:.3} (median {:.3}, first {:.3}) grid+advect {:.3} (median {:.3}) tet {:.3} (median {:.3})",
             mean(&gk), med(&gk), gk[0], mean(&gk_adv), med(&gk_adv), mean(&tk_), med(&tk_));
+        {
+            let (mut gr, mut gkk, mut tr, mut tkk) = (vec![], vec![], vec![], vec![]);
+            for _ in 0..20 {
+                sim2.step().unwrap();
+                let t = Instant::now();
+                let rot = asm.rotations(&sim2.grid, &sim2.u, 5);
+                gr.push(t.elapsed().as_secs_f64() * 1e3);
+                let t = Instant::now();
+                asm.assemble_stiffness(&sim2.grid, &m, &blocks, Some(&rot), &dir, None, &mut k);
+                gkk.push(t.elapsed().as_secs_f64() * 1e3);
+                tet2.step().unwrap();
+                let t = Instant::now();
+                let trot = ta.rotations(&tet2.mesh, &tet2.u, 5);
+                tr.push(t.elapsed().as_secs_f64() * 1e3);
+                let t = Instant::now();
+                ta.assemble_stiffness(&tet2.mesh, &m, Some(&trot), &mut tk);
+                tkk.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            println!(
+                "after-step medians: grid rot {:.3} K {:.3} | tet rot {:.3} K {:.3} | ratio {:.2}",
+                med(&gr),
+                med(&gkk),
+                med(&tr),
+                med(&tkk),
+                (med(&tr) + med(&tkk)) / (med(&gr) + med(&gkk))
+            );
+        }
         println!("r={r}: grid blocks {t_blocks:.3} ms, rot {t_rot:.3}, K {t_k:.3} (no nitsche {t_k_nodir:.3}) | tet rot {t_trot:.3}, K {t_tk:.3} | grid K+rot {:.3} tet {:.3} ratio {:.2}",
             t_rot + t_k, t_trot + t_tk, (t_trot + t_tk) / (t_rot + t_k));
     }

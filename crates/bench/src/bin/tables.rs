@@ -13,7 +13,7 @@ use bench::machine::{self, Machine};
 use bench::peers::Peers;
 use bench::report::{col, markdown_table, Fmt};
 use bench::timing::Policy;
-use bench::{progress, stream, table_cuboid, table_lincomb, table_sparse, thesis, Ctx};
+use bench::{progress, stream, table_adjoint, table_cuboid, table_lincomb, table_sparse, thesis, Ctx};
 use clap::Parser;
 use serde::Serialize;
 use serde_json::{json, Value};
@@ -38,6 +38,12 @@ struct Args {
     /// Also write the markdown report to this file.
     #[arg(long, value_name = "PATH")]
     markdown: Option<std::path::PathBuf>,
+    /// Internal: the child process of Table 5.2's memory run (observations CSV).
+    #[arg(long, hide = true, requires = "adjoint_memory_steps")]
+    adjoint_memory_child: Option<std::path::PathBuf>,
+    /// Internal: steps of Table 5.2's memory run.
+    #[arg(long, hide = true)]
+    adjoint_memory_steps: Option<usize>,
 }
 
 /// The `tables` object, rows in field order (a `serde_json::Map` would sort the keys).
@@ -55,6 +61,8 @@ struct Tables {
     b5: Option<Vec<table_cuboid::CuboidRow>>,
     #[serde(rename = "B.6", skip_serializing_if = "Option::is_none")]
     b6: Option<Vec<table_cuboid::CuboidRow>>,
+    #[serde(rename = "5.2", skip_serializing_if = "Option::is_none")]
+    t52: Option<Vec<table_adjoint::Row>>,
 }
 
 /// The JSON report: exactly this object is printed with `--json`.
@@ -103,6 +111,25 @@ fn targets(tables: &serde_json::Map<String, Value>) -> Value {
             .and_then(|r| r.get(field).cloned())
             .unwrap_or(Value::Null)
     };
+    // "at most" goals (Table 5.2)
+    let at_most = |value: Value, goal: f64, what: &str| {
+        let met = value.as_f64().map(|v| v <= goal);
+        json!({"value": value, "goal": goal, "cmp": "<=", "met": met, "what": what})
+    };
+    let rows52 = || tables.get("5.2").and_then(|r| r.as_array()).into_iter().flatten();
+    let worst_ratio = rows52()
+        .filter_map(|r| r.get("backward_over_forward").and_then(Value::as_f64))
+        .reduce(f64::max)
+        .map_or(Value::Null, |v| json!(v));
+    let memory = rows52().find(|r| r.get("peak_rss_mb").is_some());
+    let memory_steps = memory
+        .and_then(|r| r.get("steps"))
+        .and_then(Value::as_u64)
+        .unwrap_or(300);
+    let memory_peak = memory
+        .and_then(|r| r.get("peak_rss_mb"))
+        .cloned()
+        .unwrap_or(Value::Null);
     let inv = |v: Value| v.as_f64().map_or(Value::Null, |x| json!(1.0 / x));
     // Iterations against the thesis with the preconditioner whose linear solve (CG plus
     // factorizations) was fastest at the largest r, named in the target's text.
@@ -153,7 +180,7 @@ fn targets(tables: &serde_json::Map<String, Value>) -> Value {
         t["preconditioner"] = json!(name);
         t
     };
-    json!({
+    let mut all = json!({
         "cuboid_step_over_assembly": target(inv(last("B.5", "assembly_fraction")), 20.0,
             "B.5 largest r: grid step time / grid assembly time (assembly at most 5% of a step)"),
         "cuboid_grid_vs_tet_stiffness": target(last("B.5", "grid_vs_tet_stiffness_speedup"), 2.0,
@@ -169,7 +196,23 @@ fn targets(tables: &serde_json::Map<String, Value>) -> Value {
         "cg_per_iteration_speedup_vs_eigen": target(
             find("B.4", "grid", last_grid, "per_iteration_speedup_vs_eigen"), 1.0,
             &format!("B.4 g={last_grid}: Eigen time per iteration / gpumat time per iteration")),
-    })
+    });
+    if tables.contains_key("5.2") {
+        all["adjoint_backward_over_forward"] = at_most(
+            worst_ratio,
+            1.5,
+            "5.2: backward / forward time per step, the worst of torus, bunny, dragon (thesis 1.86-2.0)",
+        );
+        all["adjoint_dragon_gradient_peak_mb"] = at_most(
+            memory_peak,
+            600.0,
+            &format!(
+                "5.2: peak RSS (MB) of a {memory_steps}-step dragon gradient (goal for 300 steps; thesis \
+             540 MB on the GPU after recomputation)"
+            ),
+        );
+    }
+    all
 }
 
 fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets: &Value) -> String {
@@ -226,8 +269,9 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
                 .as_bool()
                 .map_or("not available", |m| if m { "yes" } else { "no" });
             s.push_str(&format!(
-                "| {} | {v} | >= {} | {met} |\n",
+                "| {} | {v} | {} {} | {met} |\n",
                 t["what"].as_str().unwrap_or(""),
+                t["cmp"].as_str().unwrap_or(">="),
                 t["goal"]
             ));
         }
@@ -297,11 +341,21 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
             ));
         }
     }
+    if tables.contains_key("5.2") {
+        s.push_str(&table_adjoint::markdown(&rows("5.2")));
+    }
     s
 }
 
 fn main() {
     let args = Args::parse();
+    if let (Some(csv), Some(steps)) = (&args.adjoint_memory_child, args.adjoint_memory_steps) {
+        if let Err(e) = table_adjoint::memory_child(csv, steps) {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+        return;
+    }
     let wanted = |id: &str| args.only.is_empty() || args.only.iter().any(|o| o.eq_ignore_ascii_case(id));
     let policy = if args.quick {
         Policy::quick()
@@ -359,6 +413,10 @@ fn main() {
     }
     let b5 = wanted("B.5").then(|| table_cuboid::table(false, args.quick));
     let b6 = wanted("B.6").then(|| table_cuboid::table(true, args.quick));
+    let (t52, mut notes52) = match wanted("5.2").then(|| table_adjoint::table(args.quick)) {
+        Some((rows, notes)) => (Some(rows), notes),
+        None => (None, Vec::new()),
+    };
     let typed = Tables {
         b1,
         b2,
@@ -366,6 +424,7 @@ fn main() {
         b4,
         b5,
         b6,
+        t52,
     };
     let stream_gbs = stream_runs.iter().copied().fold(0.0, f64::max);
     progress(&format!("STREAM triad samples {stream_runs:.1?} GB/s"));
@@ -387,6 +446,9 @@ fn main() {
     }
     if let Some(r) = &typed.b6 {
         tables.insert("B.6".into(), Value::Array(to_values(r)));
+    }
+    if let Some(r) = &typed.t52 {
+        tables.insert("5.2".into(), Value::Array(to_values(r)));
     }
 
     let mut notes = vec![
@@ -414,6 +476,7 @@ fn main() {
         notes.push("quick mode: B.1 stops at n = 1e7, B.4 at g = 300".into());
     }
     notes.append(&mut ctx.peers.notes);
+    notes.append(&mut notes52);
     let machine = Machine {
         cpu: machine::cpu_name(),
         cores: machine::cores(),

@@ -39,6 +39,36 @@ pub fn rotate_block(r: &Mat3<f64>, b: &Mat3<f64>) -> Mat3<f64> {
     Mat3 { m: o }
 }
 
+/// The values of a sparse matrix shared by parallel tasks that write disjoint entries
+/// ([`Assembler::assemble_stiffness`]).
+#[derive(Clone, Copy)]
+struct EntryWriter(*mut Mat3<f64>, usize);
+
+// SAFETY: the pointer is only dereferenced through `write`/`read`, whose callers guarantee
+// that no entry is written by two tasks or read while written (see their call sites).
+unsafe impl Send for EntryWriter {}
+// SAFETY: as above.
+unsafe impl Sync for EntryWriter {}
+
+impl EntryWriter {
+    /// # Safety
+    /// `k` is written by no other task and read by none while this runs.
+    #[inline(always)]
+    unsafe fn write(&self, k: usize, v: Mat3<f64>) {
+        assert!(k < self.1);
+        // SAFETY: in bounds (checked) and exclusive (the caller's contract).
+        unsafe { self.0.add(k).write(v) }
+    }
+    /// # Safety
+    /// `k` is written by no task while this runs.
+    #[inline(always)]
+    unsafe fn read(&self, k: usize) -> Mat3<f64> {
+        assert!(k < self.1);
+        // SAFETY: in bounds (checked), initialized and not written concurrently (contract).
+        unsafe { self.0.add(k).read() }
+    }
+}
+
 /// Material and boundary constants of one assembly.
 #[derive(Clone, Copy, Debug)]
 pub struct Material {
@@ -121,8 +151,8 @@ pub struct Assembler {
     contrib: Vec<(u32, u8)>,
     /// entries on or above the diagonal (computed; the others are their transposes)
     upper: Vec<u32>,
-    /// for every entry: its upper entry's position in `upper`, and whether it is transposed
-    source: Vec<(u32, bool)>,
+    /// entries below the diagonal and their mirror entries above it: `(entry, mirror)`
+    lower: Vec<(u32, u32)>,
     /// cells touching each dof: `node_cells[node_ptr[d]..node_ptr[d+1]]` as `(cell, corner)`
     node_ptr: Vec<u32>,
     node_cells: Vec<(u32, u8)>,
@@ -183,27 +213,18 @@ impl Assembler {
                 nnext[d as usize] += 1;
             }
         }
-        // upper-triangle entries and the mirror map
+        // upper-triangle entries and the mirror map of the others
         let mut upper = Vec::with_capacity(pattern.nnz() / 2 + n);
-        let mut upper_pos = vec![u32::MAX; pattern.nnz()];
-        for r in 0..n {
-            for kk in pattern.row_range(r) {
-                if pattern.col_idx()[kk] as usize >= r {
-                    upper_pos[kk] = upper.len() as u32;
-                    upper.push(kk as u32);
-                }
-            }
-        }
-        let mut source = vec![(0u32, false); pattern.nnz()];
+        let mut lower = Vec::with_capacity(pattern.nnz() / 2);
         for r in 0..n {
             for kk in pattern.row_range(r) {
                 let c = pattern.col_idx()[kk] as usize;
-                source[kk] = if c >= r {
-                    (upper_pos[kk], false)
+                if c >= r {
+                    upper.push(kk as u32);
                 } else {
                     let mirror = pattern.find(c, r).expect("cell pairs give a symmetric pattern");
-                    (upper_pos[mirror], true)
-                };
+                    lower.push((kk as u32, mirror as u32));
+                }
             }
         }
         Self {
@@ -211,7 +232,7 @@ impl Assembler {
             contrib_ptr,
             contrib,
             upper,
-            source,
+            lower,
             node_ptr,
             node_cells,
             tables: StiffnessTables::new(grid.h()),
@@ -277,22 +298,21 @@ impl Assembler {
             }
             acc
         };
-        let upper: Vec<Mat3<f64>> = self
-            .upper
-            .par_iter()
-            .with_min_len(256)
-            .map(|&kk| block(kk as usize))
-            .collect();
+        // In place, without a buffer: the upper entries, then each lower one from its mirror.
         let values = k.batch_values_mut(0);
-        values
-            .par_iter_mut()
-            .enumerate()
-            .with_min_len(1024)
-            .for_each(|(kk, out)| {
-                let (u, transposed) = self.source[kk];
-                let b = upper[u as usize];
-                *out = if transposed { b.transpose() } else { b };
-            });
+        let out = EntryWriter(values.as_mut_ptr(), values.len());
+        self.upper.par_iter().with_min_len(256).for_each(|&kk| {
+            let b = block(kk as usize);
+            // SAFETY: `upper` lists distinct entries of the pattern (`< values.len()`), so
+            // every task writes its own entry and nothing reads them during this pass.
+            unsafe { out.write(kk as usize, b) };
+        });
+        self.lower.par_iter().with_min_len(1024).for_each(|&(kk, mirror)| {
+            // SAFETY: the `kk` are distinct entries below the diagonal, each written by one
+            // task; the `mirror`s are entries above it, written in the finished pass above and
+            // only read here, so no entry is both read and written in this pass.
+            unsafe { out.write(kk as usize, out.read(mirror as usize).transpose()) };
+        });
     }
 
     /// Per-cell rotations from the displacement `u` (eq. 4.4.8-4.4.9).

@@ -1,0 +1,215 @@
+//! `softbody observe` + `fit` + `gradcheck` end to end on a small bar: the fit recovers the
+//! truth from noise-free observations, the log survives and `--resume` continues it, the
+//! gradient check agrees, and bad input gives one line naming the file (and line) or key.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn softbody() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_softbody"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("softbody-fit-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn scene(young: f64, poisson: f64) -> String {
+    format!(
+        r#"
+[body]
+shape = {{ kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }}
+resolution = 10
+[material]
+young = {young}
+poisson = {poisson}
+[damping]
+mass = 0.1
+stiffness = 0.01
+[gravity]
+acceleration = [0.0, -10.0, 0.0]
+[[dirichlet]]
+min = [-1.0, 0.0, -1.0]
+max = [-0.2, 2.0, 1.0]
+[time]
+dt = 0.01
+steps = 8
+[fit]
+parameters = ["young", "poisson"]
+optimizer = "gauss-newton"
+iterations = 15
+"#
+    )
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn run(args: &[&str]) -> Output {
+    softbody().args(args).output().unwrap()
+}
+
+fn json(o: &Output) -> Value {
+    assert!(
+        o.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).expect("one JSON object")
+}
+
+fn one_line_error(o: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "stderr: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains(needle), "expected `{needle}` in: {err}");
+}
+
+/// Observations of the truth (E = 2000, nu = 0.3) with 4 cameras.
+fn observe(dir: &Path) -> PathBuf {
+    let truth = write(dir, "truth.toml", &scene(2000.0, 0.3));
+    let obs = dir.join("obs.csv");
+    let o = run(&[
+        "observe",
+        truth.to_str().unwrap(),
+        "--out",
+        obs.to_str().unwrap(),
+        "--radius",
+        "2",
+        "--json",
+    ]);
+    let j = json(&o);
+    assert!(j["points"].as_u64().unwrap() > 500);
+    obs
+}
+
+#[test]
+fn fit_recovers_the_truth_and_resumes() {
+    let dir = tmp("recover");
+    let obs = observe(&dir);
+    let start = write(&dir, "start.toml", &scene(2600.0, 0.35));
+    let out = dir.join("report");
+    let o = run(&[
+        "fit",
+        start.to_str().unwrap(),
+        "--observations",
+        obs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let j = json(&o);
+    let e = j["parameters"]["young"].as_f64().unwrap();
+    let nu = j["parameters"]["poisson"].as_f64().unwrap();
+    assert!((e / 2000.0 - 1.0).abs() < 1e-3, "E = {e}");
+    assert!((nu / 0.3 - 1.0).abs() < 1e-3, "nu = {nu}");
+    assert_eq!(j["initial_parameters"]["young"].as_f64().unwrap().round(), 2600.0);
+    assert!(j["rms"]["final"].as_f64().unwrap() < 1e-3 * j["rms"]["initial"].as_f64().unwrap());
+    assert!(j["cost"]["final"].as_f64().unwrap() < j["cost"]["initial"].as_f64().unwrap());
+    let history = j["history"].as_array().unwrap();
+    assert_eq!(history.len() as u64, j["iterations"].as_u64().unwrap() + 1);
+    for f in [
+        "fit.json",
+        "fit.log",
+        "cost.png",
+        "parameters.png",
+        "rms_per_frame.png",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let log = std::fs::read_to_string(out.join("fit.log")).unwrap();
+    assert_eq!(log.lines().count(), history.len());
+
+    // an interrupted fit: keep the first two logged iterations, then resume
+    let kept: Vec<&str> = log.lines().take(2).collect();
+    std::fs::write(out.join("fit.log"), kept.join("\n") + "\n").unwrap();
+    let o = run(&[
+        "fit",
+        start.to_str().unwrap(),
+        "--observations",
+        obs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--resume",
+        "--json",
+    ]);
+    let j = json(&o);
+    let h = j["history"].as_array().unwrap();
+    assert_eq!(h[0]["iteration"], 0);
+    assert_eq!(h[1]["iteration"], 1);
+    assert_eq!(h[2]["iteration"], 2, "resumed iterations continue the numbering");
+    let e = j["parameters"]["young"].as_f64().unwrap();
+    assert!((e / 2000.0 - 1.0).abs() < 1e-3, "resumed E = {e}");
+    let log = std::fs::read_to_string(out.join("fit.log")).unwrap();
+    assert_eq!(log.lines().count(), h.len());
+}
+
+#[test]
+fn gradcheck_agrees_and_bad_input_is_one_line() {
+    let dir = tmp("check");
+    let obs = observe(&dir);
+    let start = write(&dir, "start.toml", &scene(2400.0, 0.32));
+    let s = start.to_str().unwrap();
+    let ob = obs.to_str().unwrap();
+    let j = json(&run(&[
+        "gradcheck",
+        s,
+        "--observations",
+        ob,
+        "--params",
+        "young,poisson,gravity",
+        "--json",
+    ]));
+    for name in ["young", "poisson", "gravity.y"] {
+        let r = &j["parameters"][name];
+        let rel = r["rel_error"].as_f64().unwrap();
+        assert!(rel < 1e-4, "{name}: {r}");
+        assert!(r["adjoint"].as_f64().unwrap() != 0.0);
+    }
+
+    // unknown parameter
+    one_line_error(
+        &run(&["fit", s, "--observations", ob, "--params", "youngs"]),
+        "unknown parameter `youngs`",
+    );
+    // unknown optimizer
+    one_line_error(
+        &run(&["fit", s, "--observations", ob, "--optimizer", "adam"]),
+        "unknown optimizer",
+    );
+    // a frame beyond the simulated steps: the file and line are named
+    let late = write(&dir, "late.csv", "frame,x,y,z\n1,0,1,0\n40,0.1,1,0\n");
+    one_line_error(
+        &run(&["fit", s, "--observations", late.to_str().unwrap()]),
+        "late.csv:3: frame 40 lies beyond the 8 simulated steps",
+    );
+    // a line that does not parse
+    let bad = write(&dir, "bad.csv", "frame,x,y,z\n1,0,1,0\n2,0.1,nan,0\n");
+    one_line_error(
+        &run(&["fit", s, "--observations", bad.to_str().unwrap()]),
+        "line 3",
+    );
+    // observations nowhere near the body: an error, not a zero gradient
+    let far = write(&dir, "far.csv", "frame,x,y,z\n1,50,50,50\n2,51,50,50\n");
+    one_line_error(
+        &run(&["fit", s, "--observations", far.to_str().unwrap()]),
+        "within reach",
+    );
+    // a bad [fit] key names the key
+    let badfit = write(
+        &dir,
+        "badfit.toml",
+        &scene(2000.0, 0.3).replace("iterations = 15", "iteration = 15"),
+    );
+    one_line_error(
+        &run(&["fit", badfit.to_str().unwrap(), "--observations", ob]),
+        "[fit].iteration: unknown key",
+    );
+}
