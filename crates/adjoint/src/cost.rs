@@ -183,6 +183,9 @@ pub struct ObservedPoint {
     pub position: Vec3<f64>,
     /// weight
     pub weight: f64,
+    /// the eye of the camera that saw it, when known: the residual is then measured along the
+    /// viewing ray ([`crate::cost_mesh`])
+    pub eye: Option<Vec3<f64>>,
 }
 
 /// A candidate cell of the point-cloud cost: its corners' band slots, reference positions and

@@ -36,7 +36,8 @@ pub struct MeshHit {
     pub bary: [f64; 3],
     /// signed distance (positive outside)
     pub residual: f64,
-    /// `dr/dq` direction: `(p - q) / r`, or the face normal when `r` is zero
+    /// `dr/dq` direction: `(p - q) / r` (the face normal when `r` is zero); for a ray
+    /// residual `n / (n . d)`
     pub direction: Vec3<f64>,
 }
 
@@ -99,6 +100,40 @@ fn node_u(u: &[Vec3<f64>], d: u32) -> Vec3<f64> {
     } else {
         u[d as usize]
     }
+}
+
+/// Rays meeting a triangle at `|n . d|` below this use the closest-point residual instead.
+pub const GRAZING: f64 = 0.1;
+
+/// The intersection of the ray `o + t d` with triangle `(a, b, c)` (Moller-Trumbore): `(t,
+/// barycentric)` with `t > 0`, or `None`.
+pub fn ray_triangle(
+    o: Vec3<f64>,
+    d: Vec3<f64>,
+    a: Vec3<f64>,
+    b: Vec3<f64>,
+    c: Vec3<f64>,
+) -> Option<(f64, [f64; 3])> {
+    let (e1, e2) = (b - a, c - a);
+    let pv = d.cross(e2);
+    let det = e1.dot(pv);
+    if det.abs() < 1e-300 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let tv = o - a;
+    let u = tv.dot(pv) * inv;
+    let eps = 1e-12;
+    if !(-eps..=1.0 + eps).contains(&u) {
+        return None;
+    }
+    let qv = tv.cross(e1);
+    let v = d.dot(qv) * inv;
+    if v < -eps || u + v > 1.0 + eps {
+        return None;
+    }
+    let t = e2.dot(qv) * inv;
+    (t > 0.0).then_some((t, [1.0 - u - v, u, v]))
 }
 
 impl SurfaceCost {
@@ -184,6 +219,12 @@ impl SurfaceCost {
             .map(|pt| {
                 let p = pt.position;
                 let c = bin(p);
+                // along the viewing ray: the first hit among the triangles near the point
+                if let Some(eye) = pt.eye {
+                    if let Some(hit) = self.ray_hit(&hash, c, x, eye, p) {
+                        return Some(hit);
+                    }
+                }
                 let mut best: Option<(f64, usize, [f64; 3])> = None;
                 for dz in -2..=2 {
                     for dy in -2..=2 {
@@ -232,6 +273,62 @@ impl SurfaceCost {
                 })
             })
             .collect()
+    }
+
+    /// The ray residual of a point `p` seen from `eye` (module docs): the first intersection
+    /// of the ray with the triangles in the bins around `p` (bin `c`), if it is not grazing.
+    fn ray_hit(
+        &self,
+        hash: &HashMap<[i64; 3], Vec<u32>>,
+        c: [i64; 3],
+        x: &[Vec3<f64>],
+        eye: Vec3<f64>,
+        p: Vec3<f64>,
+    ) -> Option<MeshHit> {
+        let faces = &self.surface.mesh.faces;
+        let s_obs = (p - eye).norm();
+        if s_obs <= 0.0 {
+            return None;
+        }
+        let d = (p - eye) * (1.0 / s_obs);
+        let mut best: Option<(f64, usize, [f64; 3])> = None;
+        for dz in -2..=2 {
+            for dy in -2..=2 {
+                for dx in -2..=2 {
+                    let Some(list) = hash.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
+                        continue;
+                    };
+                    for &fi in list {
+                        let [a, b, cc] = faces[fi as usize].map(|v| x[v as usize]);
+                        let Some((t, bary)) = ray_triangle(eye, d, a, b, cc) else {
+                            continue;
+                        };
+                        let better = match best {
+                            None => true,
+                            Some((bt, bf, _)) => t < bt || (t == bt && (fi as usize) < bf),
+                        };
+                        if better {
+                            best = Some((t, fi as usize, bary));
+                        }
+                    }
+                }
+            }
+        }
+        let (t, face, bary) = best?;
+        let [a, b, cc] = faces[face].map(|v| x[v as usize]);
+        let n = (b - a).cross(cc - a);
+        let n = n * (1.0 / n.norm().max(f64::MIN_POSITIVE));
+        let nd = n.dot(d);
+        if nd.abs() < GRAZING || (t - s_obs).abs() > self.outside_residual {
+            return None;
+        }
+        // r = s_obs - t;  dt/dX_i = b_i n / (n . d)  =>  dr/dX_i = -b_i n / (n . d)
+        Some(MeshHit {
+            face,
+            bary,
+            residual: s_obs - t,
+            direction: n * (1.0 / nd),
+        })
     }
 
     /// Residuals of `frame` (outside points: `None`).

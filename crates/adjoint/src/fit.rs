@@ -21,7 +21,7 @@ pub fn point_cloud_cost(
     Ok(PointCloudCost::new(
         grid,
         band,
-        observed_frames(observations),
+        observed_frames(observations, &[]),
         robust,
     ))
 }
@@ -39,7 +39,8 @@ pub fn scene_simulation(scene: &Scene) -> Result<Simulation, String> {
 /// Which point-to-surface residual a fit uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum CostKind {
-    /// signed distance to the simulated surface mesh ([`crate::cost_mesh::SurfaceCost`])
+    /// distance to the simulated surface mesh ([`crate::cost_mesh::SurfaceCost`]): along each
+    /// point's viewing ray when its camera's eye is known, else to the closest point
     #[default]
     Surface,
     /// the thesis' level-set value `phi(t)(x)` (eq. 5.4.4, [`PointCloudCost`])
@@ -57,8 +58,8 @@ impl std::str::FromStr for CostKind {
     }
 }
 
-/// The observed points grouped by frame.
-pub fn observed_frames(observations: &Observations) -> Vec<(usize, Vec<ObservedPoint>)> {
+/// The observed points grouped by frame; `eyes[c]` is the eye of camera `c`, when known.
+pub fn observed_frames(observations: &Observations, eyes: &[[f64; 3]]) -> Vec<(usize, Vec<ObservedPoint>)> {
     observations
         .frames()
         .map(|(f, pts)| {
@@ -67,11 +68,49 @@ pub fn observed_frames(observations: &Observations) -> Vec<(usize, Vec<ObservedP
                 .map(|p| ObservedPoint {
                     position: Vec3::new(p.position[0], p.position[1], p.position[2]),
                     weight: p.weight,
+                    eye: p
+                        .camera
+                        .and_then(|c| eyes.get(c as usize))
+                        .map(|e| Vec3::from_array(*e)),
                 })
                 .collect();
             (f, pts)
         })
         .collect()
+}
+
+/// The camera file `softbody observe` writes beside an observation CSV (`obs.csv` ->
+/// `obs.cameras.json`): `{"cameras": [{"id": 0, "eye": [x, y, z], ...}, ...]}`.
+pub fn cameras_path(observations: &std::path::Path) -> std::path::PathBuf {
+    observations.with_extension("cameras.json")
+}
+
+/// Reads the camera eyes of a camera file (index = camera id).
+pub fn read_camera_eyes(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let cams = v["cameras"]
+        .as_array()
+        .ok_or_else(|| format!("{}: no `cameras` list", path.display()))?;
+    let mut eyes = vec![[f64::NAN; 3]; cams.len()];
+    for (i, c) in cams.iter().enumerate() {
+        let id = c["id"].as_u64().unwrap_or(i as u64) as usize;
+        let eye: Option<Vec<f64>> = c["eye"]
+            .as_array()
+            .and_then(|a| a.iter().map(|x| x.as_f64()).collect());
+        match eye {
+            Some(e) if e.len() == 3 && e.iter().all(|x| x.is_finite()) && id < eyes.len() => {
+                eyes[id] = [e[0], e[1], e[2]]
+            }
+            _ => {
+                return Err(format!(
+                    "{}: cameras[{i}]: needs an id and an eye [x, y, z]",
+                    path.display()
+                ))
+            }
+        }
+    }
+    Ok(eyes)
 }
 
 /// The point-cloud reconstruction problem of a scene: its simulation, `steps` steps (default:
@@ -83,6 +122,7 @@ pub fn scene_problem(
     robust: Robust,
     steps: Option<usize>,
     kind: CostKind,
+    eyes: &[[f64; 3]],
 ) -> Result<Problem, String> {
     let sim = scene_simulation(scene)?;
     let mut params = params;
@@ -97,7 +137,7 @@ pub fn scene_problem(
     let cost: Box<dyn crate::cost::Cost> = match kind {
         CostKind::Surface => Box::new(crate::cost_mesh::SurfaceCost::new(
             &sim.grid,
-            observed_frames(observations),
+            observed_frames(observations, eyes),
             robust,
         )?),
         CostKind::LevelSet => Box::new(point_cloud_cost(&sim.grid, observations, robust)?),
@@ -361,4 +401,76 @@ pub fn gradcheck(problem: &mut Problem, rel_step: f64) -> Result<Vec<GradCheck>,
         });
     }
     Ok(out)
+}
+
+/// Inverts a small symmetric positive definite matrix (`n x n`, row-major) by Gauss-Jordan
+/// elimination with partial pivoting; `None` when it is singular.
+pub fn invert_small(a: &[f64], n: usize) -> Option<Vec<f64>> {
+    let mut m = a.to_vec();
+    let mut inv = vec![0.0; n * n];
+    for i in 0..n {
+        inv[i * n + i] = 1.0;
+    }
+    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    for col in 0..n {
+        let piv = (col..n).max_by(|&x, &y| m[x * n + col].abs().total_cmp(&m[y * n + col].abs()))?;
+        if m[piv * n + col].abs() <= 1e-14 * scale {
+            return None;
+        }
+        for k in 0..n {
+            m.swap(col * n + k, piv * n + k);
+            inv.swap(col * n + k, piv * n + k);
+        }
+        let d = 1.0 / m[col * n + col];
+        for k in 0..n {
+            m[col * n + k] *= d;
+            inv[col * n + k] *= d;
+        }
+        for r in 0..n {
+            if r != col {
+                let f = m[r * n + col];
+                if f != 0.0 {
+                    for k in 0..n {
+                        m[r * n + k] -= f * m[col * n + k];
+                        inv[r * n + k] -= f * inv[col * n + k];
+                    }
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
+/// First-order standard errors of the fitted quantities at `x` (squared loss): the covariance
+/// `s^2 H^{-1}` with the Gauss-Newton matrix `H = J^T J` of the tangent-linear pass and the
+/// residual variance `s^2 = sum r^2 / (N - n)` of the `N` residuals, mapped to the reported
+/// quantities by [`ParamSet::x_scales`]. `None` when `H` is singular (a parameter the data do
+/// not determine) or there are no more residuals than parameters.
+pub fn standard_errors(
+    problem: &mut Problem,
+    x: &[f64],
+    ev: &Evaluation,
+) -> Result<Option<Vec<(String, f64)>>, String> {
+    let n = x.len();
+    let count: usize = ev.frames.iter().map(|f| f.count - f.outside).sum();
+    if count <= n {
+        return Ok(None);
+    }
+    let sum_sq: f64 = ev.frames.iter().map(|f| f.sum_squared).sum();
+    let s2 = sum_sq / (count - n) as f64;
+    let h = problem.gauss_newton_matrix(x).map_err(|e| e.to_string())?;
+    let Some(inv) = invert_small(&h, n) else {
+        return Ok(None);
+    };
+    let model = problem.model_at(x);
+    let scales = problem.params.x_scales(&model);
+    Ok(Some(
+        problem
+            .params
+            .labels()
+            .into_iter()
+            .enumerate()
+            .map(|(k, l)| (l, scales[k] * (s2 * inv[k * n + k]).max(0.0).sqrt()))
+            .collect(),
+    ))
 }

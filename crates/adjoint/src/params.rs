@@ -455,6 +455,29 @@ impl ParamSet {
         out
     }
 
+    /// Per component of `x` ([`ParamSet::labels`]), the derivative of the reported quantity
+    /// with respect to `x_k`: the value itself for log-fitted quantities, `nu (1 - 2 nu)` for
+    /// the Poisson ratio, 1 for linear ones (gravity, velocities, the ground's tilt angles in
+    /// radians and height, the field's log factors). Standard errors in `x` times these are
+    /// standard errors of the reported quantities (first order).
+    pub fn x_scales(&self, model: &Model) -> Vec<f64> {
+        let mut out = Vec::new();
+        for p in &self.params {
+            match p {
+                Param::Young => out.push(model.young),
+                Param::Poisson => out.push(model.poisson * (1.0 - 2.0 * model.poisson)),
+                Param::Density => out.push(model.density),
+                Param::DampingMass => out.push(model.damping_mass),
+                Param::DampingStiffness => out.push(model.damping_stiffness),
+                Param::Gravity | Param::Ground | Param::InitialVelocity | Param::InitialAngularVelocity => {
+                    out.extend([1.0; 3])
+                }
+                Param::StiffnessField => out.extend(vec![1.0; self.field.as_ref().map_or(0, |f| f.len())]),
+            }
+        }
+        out
+    }
+
     /// The gradient with respect to the physical values of [`ParamSet::values`] (for reports
     /// and `gradcheck`): `dJ/dE`, `dJ/dnu`, ..., the ground as `dJ/dn` (free vector) and
     /// `dJ/dheight`.

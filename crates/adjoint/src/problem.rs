@@ -1,9 +1,10 @@
 //! A reconstruction problem: a simulation, the parameters to fit and a cost; its value and its
 //! adjoint gradient (thesis Alg. 5.1 forward, Alg. 5.3 backward).
 //!
-//! The forward pass stores only `u` and `v` per frame and the cost gradient of the observed
-//! frames; the backward pass recomputes `K`, `A` and the contact forces from them (sec. 5.7)
-//! and runs [`crate::backward::step_adjoint`] from the last step to the first:
+//! The forward pass stores only `u` and `v` per frame (3 numbers per node each); the backward
+//! pass recomputes `K`, `A`, the contact forces and the cost gradients of the observed frames
+//! from them (sec. 5.7) and runs [`crate::backward::step_adjoint`] from the last step to the
+//! first:
 //!
 //! ```text
 //! u_bar = dJ/du(T), v_bar = 0
@@ -19,7 +20,6 @@ use crate::cost::{Cost, FrameCost};
 use crate::params::ParamSet;
 use cutfem::fem::{Model, Simulation};
 use gpumat::{Matrix, Vec3};
-use std::collections::BTreeMap;
 use std::time::Instant;
 
 /// Why an evaluation failed.
@@ -88,11 +88,23 @@ pub struct Problem {
     pub divergence_limit: f64,
 }
 
-/// The stored forward trajectory.
+/// A state vector stored compactly: 3 values per node (a `Vec3` in a matrix has 4 lanes).
+struct Packed(Vec<[f64; 3]>);
+
+impl Packed {
+    fn pack(m: &Matrix<Vec3<f64>>) -> Self {
+        Packed(m.as_slice().iter().map(|v| v.to_array()).collect())
+    }
+    fn unpack(&self) -> Matrix<Vec3<f64>> {
+        Matrix::from_fn(self.0.len(), 1, 1, |i, _, _| Vec3::from_array(self.0[i]))
+    }
+}
+
+/// The stored forward trajectory: `u` and `v` per frame (sec. 5.7: nothing else is stored;
+/// `K`, `A`, the contact forces and the cost gradients are recomputed in the backward pass).
 struct Trajectory {
-    u: Vec<Matrix<Vec3<f64>>>,
-    v: Vec<Matrix<Vec3<f64>>>,
-    cost_grad: BTreeMap<usize, Matrix<Vec3<f64>>>,
+    u: Vec<Packed>,
+    v: Vec<Packed>,
 }
 
 impl Problem {
@@ -162,9 +174,8 @@ impl Problem {
             fallbacks: 0,
         };
         let mut traj = store.then(|| Trajectory {
-            u: vec![self.sim.u.clone()],
-            v: vec![self.sim.v.clone()],
-            cost_grad: BTreeMap::new(),
+            u: vec![Packed::pack(&self.sim.u)],
+            v: vec![Packed::pack(&self.sim.v)],
         });
         let mut cost_s = 0.0;
         for t in 0..=self.steps {
@@ -183,22 +194,16 @@ impl Problem {
                     )));
                 }
                 if let Some(tr) = &mut traj {
-                    tr.u.push(self.sim.u.clone());
-                    tr.v.push(self.sim.v.clone());
+                    tr.u.push(Packed::pack(&self.sim.u));
+                    tr.v.push(Packed::pack(&self.sim.v));
                 }
             }
             if frames.binary_search(&t).is_ok() {
                 let tc = Instant::now();
-                let fc = match &mut traj {
-                    Some(tr) => {
-                        let mut g = Matrix::zeros(self.sim.grid.dofs(), 1, 1);
-                        let fc = self.cost.frame_cost(t, &self.sim.u, Some(&mut g));
-                        tr.cost_grad.insert(t, g);
-                        fc
-                    }
-                    None => self.cost.frame_cost(t, &self.sim.u, None),
-                }
-                .map_err(|e| ProblemError::Diverged(format!("frame {t}: {e}")))?;
+                let fc = self
+                    .cost
+                    .frame_cost(t, &self.sim.u, None)
+                    .map_err(|e| ProblemError::Diverged(format!("frame {t}: {e}")))?;
                 cost_s += tc.elapsed().as_secs_f64();
                 ev.cost += fc.cost;
                 ev.frames.push(fc);
@@ -229,17 +234,27 @@ impl Problem {
         let n = self.sim.grid.dofs();
         let (dt, theta) = (model.dt, model.theta);
         let mut grad = PhysicalGradient::default();
-        let mut ub = traj
-            .cost_grad
-            .remove(&self.steps)
-            .unwrap_or_else(|| Matrix::zeros(n, 1, 1));
+        let frames = self.cost.frames();
+        let mut cost_s = 0.0;
+        // dJ/du(t) of an observed frame, recomputed from the stored state
+        let mut cost_grad = |cost: &dyn Cost, t: usize, u: &Matrix<Vec3<f64>>| -> Result<Matrix<Vec3<f64>>, ProblemError> {
+            let mut g = Matrix::zeros(n, 1, 1);
+            if frames.binary_search(&t).is_ok() {
+                let tc = Instant::now();
+                cost.frame_cost(t, u, Some(&mut g))
+                    .map_err(|e| ProblemError::Diverged(format!("frame {t}: {e}")))?;
+                cost_s += tc.elapsed().as_secs_f64();
+            }
+            Ok(g)
+        };
+        let mut ub = cost_grad(self.cost.as_ref(), self.steps, &traj.u[self.steps].unpack())?;
         let mut vb: Matrix<Vec3<f64>> = Matrix::zeros(n, 1, 1);
         let mut lam: Matrix<Vec3<f64>> = Matrix::zeros(n, 1, 1);
         let c = 1.0 / (theta * dt);
         for step in (0..self.steps).rev() {
             let g = Matrix::eval(ub.ex() + vb.ex() * c);
-            self.sim.u = traj.u[step].clone();
-            self.sim.v = traj.v[step].clone();
+            self.sim.u = traj.u[step].unpack();
+            self.sim.v = traj.v[step].unpack();
             self.sim.assemble_system();
             let (its, _, fallback) = self
                 .sim
@@ -247,15 +262,12 @@ impl Problem {
                 .map_err(|e| ProblemError::Diverged(format!("adjoint step {step}: {e}")))?;
             ev.backward_iterations += its;
             ev.fallbacks += usize::from(fallback);
-            let mut new_ub = traj
-                .cost_grad
-                .remove(&step)
-                .unwrap_or_else(|| Matrix::zeros(n, 1, 1));
+            let mut new_ub = cost_grad(self.cost.as_ref(), step, &self.sim.u)?;
             new_ub.assign_with(|u| u - vb.ex() * c);
             let mut new_vb = Matrix::eval(vb.ex() * (-(1.0 - theta) / theta));
             step_adjoint(
                 &self.sim,
-                &traj.u[step + 1],
+                &traj.u[step + 1].unpack(),
                 &lam,
                 &mut new_ub,
                 &mut new_vb,
@@ -268,7 +280,8 @@ impl Problem {
             traj.v.truncate(step + 1);
         }
         initial_velocity_adjoint(&self.sim, &vb, &mut grad);
-        ev.backward_s = tb.elapsed().as_secs_f64();
+        ev.backward_s = tb.elapsed().as_secs_f64() - cost_s;
+        ev.cost_s += cost_s;
         let gx = self.params.chain(&model, &grad);
         Ok((ev, gx, grad))
     }

@@ -201,6 +201,7 @@ fn point_cloud_cost_gradient_matches_finite_differences() {
                 .map(|v| ObservedPoint {
                     position: Vec3::new(v[0], v[1], v[2]),
                     weight: 1.0,
+                    eye: None,
                 })
                 .collect();
             (t, pts)
@@ -288,6 +289,7 @@ fn surface_observations(g: &Grid) -> Vec<(usize, Vec<ObservedPoint>)> {
                 .map(|v| ObservedPoint {
                     position: Vec3::new(v[0], v[1], v[2]),
                     weight: 1.0,
+                    eye: None,
                 })
                 .collect();
             (t, pts)
@@ -351,5 +353,31 @@ fn stiffness_field_gradient_matches_finite_differences() {
     let mut sim = Simulation::new(grid(), truth()).unwrap();
     sim.solver.direct = true;
     let mut p = Problem::new(sim, params, Box::new(cost), STEPS).unwrap();
+    check_against_fd(&mut p, 1e-6);
+}
+
+/// The same with the residual along each point's viewing ray (camera eyes known).
+#[test]
+fn ray_residual_gradient_matches_finite_differences() {
+    use adjoint::cost_mesh::SurfaceCost;
+    let g = grid();
+    let eyes = [Vec3::new(0.3, 2.5, 2.0), Vec3::new(-1.5, 1.0, -2.0)];
+    let frames: Vec<(usize, Vec<ObservedPoint>)> = surface_observations(&g)
+        .into_iter()
+        .map(|(t, pts)| {
+            let pts = pts
+                .into_iter()
+                .enumerate()
+                .map(|(i, mut p)| {
+                    p.eye = Some(eyes[i % 2]);
+                    p
+                })
+                .collect();
+            (t, pts)
+        })
+        .collect();
+    let cost = SurfaceCost::new(&g, frames, Robust::Squared).unwrap();
+    let params = ParamSet::parse(&["young,poisson,gravity,ground"]).unwrap();
+    let mut p = problem(Box::new(cost), params);
     check_against_fd(&mut p, 1e-6);
 }

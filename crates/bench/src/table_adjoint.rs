@@ -17,10 +17,11 @@
 use adjoint::cost::Robust;
 use adjoint::fit::{scene_problem, scene_simulation, CostKind};
 use adjoint::observations::Observations;
-use adjoint::observe::{observe_mesh, place_cameras, record, RigParams};
+use adjoint::observe::{observe_mesh, place_cameras, record, Camera, RigParams};
 use adjoint::params::ParamSet;
 use adjoint::problem::Problem;
 use cutfem::fem::grid::INACTIVE;
+use cutfem::fem::Simulation;
 use cutfem::scene::Scene;
 use cutfem::surface::extract_surface;
 use serde::Serialize;
@@ -173,8 +174,8 @@ pub struct MemoryRow {
     pub peak_rss_mb: Option<f64>,
     /// peak_rss_mb - rss_before_mb: what the gradient itself added, MB
     pub gradient_mb: Option<f64>,
-    /// what the stored trajectory takes by count (u and v of every frame, the cost
-    /// gradient of every observed frame; f64 vectors of 3 x dofs), MB
+    /// what the stored trajectory takes by count: u and v of every frame, 3 f64 per node
+    /// each (as `adjoint::problem` keeps them; the cost gradients are recomputed), MB
     pub trajectory_mb: Option<f64>,
     /// seconds of the gradient (forward + cost + backward)
     pub gradient_s: Option<f64>,
@@ -199,9 +200,9 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// Noise-free observations of the scene's own simulation, frames 1..=steps.
-fn observe(scene: &Scene, steps: usize, radius: f64) -> Result<Observations, String> {
-    let mut sim = scene_simulation(scene)?;
+/// The rig of 4 cameras of 32 x 32 pixels (seed 0) at `radius` from the centre of the
+/// body's reference surface.
+fn rig(sim: &Simulation, radius: f64) -> Result<Vec<Camera>, String> {
     let surface = extract_surface(&sim.grid.sdf);
     let (lo, hi) = surface
         .mesh
@@ -215,7 +216,15 @@ fn observe(scene: &Scene, steps: usize, radius: f64) -> Result<Observations, Str
         seed: 0,
         ..RigParams::default()
     };
-    let cameras = place_cameras(target, &rig);
+    Ok(place_cameras(target, &rig))
+}
+
+/// Noise-free observations of the scene's own simulation, frames 1..=steps, and the eyes of
+/// the cameras.
+fn observe(scene: &Scene, steps: usize, radius: f64) -> Result<(Observations, Vec<[f64; 3]>), String> {
+    let mut sim = scene_simulation(scene)?;
+    let surface = extract_surface(&sim.grid.sdf);
+    let cameras = rig(&sim, radius)?;
     let mut obs = Observations::new();
     for f in 1..=steps {
         sim.step().map_err(|e| format!("truth step {f}: {e}"))?;
@@ -225,11 +234,16 @@ fn observe(scene: &Scene, steps: usize, radius: f64) -> Result<Observations, Str
         });
         record(&mut obs, f, &observe_mesh(&mesh, &cameras, 0.0, 0, f));
     }
-    Ok(obs)
+    Ok((obs, cameras.iter().map(|c| c.eye).collect()))
 }
 
 /// The problem of a scene for `steps` steps with its observations, and the perturbed start.
-fn problem(scene: &Scene, obs: &Observations, steps: usize) -> Result<(Problem, Vec<f64>), String> {
+fn problem(
+    scene: &Scene,
+    obs: &Observations,
+    eyes: &[[f64; 3]],
+    steps: usize,
+) -> Result<(Problem, Vec<f64>), String> {
     let params = ParamSet::parse(&["young,poisson"])?;
     let p = scene_problem(
         scene,
@@ -238,6 +252,7 @@ fn problem(scene: &Scene, obs: &Observations, steps: usize) -> Result<(Problem, 
         Robust::Squared,
         Some(steps),
         CostKind::Surface,
+        eyes,
     )?;
     let mut start = p.base.clone();
     start.young *= 1.1;
@@ -253,9 +268,9 @@ fn load(body: &Body) -> Result<Scene, String> {
 
 fn time_body(body: &Body, steps: usize, reps: usize, row: &mut AdjointRow) -> Result<(), String> {
     let scene = load(body)?;
-    let obs = observe(&scene, steps, body.radius)?;
+    let (obs, eyes) = observe(&scene, steps, body.radius)?;
     row.observed_points = Some(obs.len());
-    let (mut p, x) = problem(&scene, &obs, steps)?;
+    let (mut p, x) = problem(&scene, &obs, &eyes, steps)?;
     row.dofs = Some(p.sim.grid.dofs());
     row.active_cells = Some(p.sim.grid.cells.len());
     p.gradient(&x).map_err(|e| format!("warm-up gradient: {e}"))?;
@@ -337,6 +352,7 @@ fn memory(steps: usize) -> (MemoryRow, String) {
     let run = || -> Result<serde_json::Value, String> {
         let scene = load(&BODIES[2])?;
         observe(&scene, steps, BODIES[2].radius)?
+            .0
             .write_csv(&csv)
             .map_err(|e| e.to_string())?;
         let exe = std::env::current_exe().map_err(|e| e.to_string())?;
@@ -404,8 +420,12 @@ fn rss() -> Option<(f64, f64)> {
 pub fn memory_child(csv: &Path, steps: usize) -> Result<(), String> {
     let scene = load(&BODIES[2])?;
     let obs = Observations::read_csv(csv).map_err(|e| e.to_string())?;
-    let frames = obs.frame_count();
-    let (mut p, x) = problem(&scene, &obs, steps)?;
+    // the same rig as the parent's (deterministic)
+    let eyes: Vec<[f64; 3]> = rig(&scene_simulation(&scene)?, BODIES[2].radius)?
+        .iter()
+        .map(|c| c.eye)
+        .collect();
+    let (mut p, x) = problem(&scene, &obs, &eyes, steps)?;
     drop(obs);
     let dofs = p.sim.grid.dofs();
     let (before, _) = rss().ok_or("cannot read /proc/self/status")?;
@@ -416,7 +436,7 @@ pub fn memory_child(csv: &Path, steps: usize) -> Result<(), String> {
     let gradient_s = t.elapsed().as_secs_f64();
     let (_, peak) = rss().ok_or("cannot read /proc/self/status")?;
     let vector = 3.0 * 8.0 * dofs as f64;
-    let trajectory = vector * (2.0 * (steps + 1) as f64 + frames as f64);
+    let trajectory = vector * 2.0 * (steps + 1) as f64;
     let report = serde_json::json!({
         "steps": steps,
         "dofs": dofs,
@@ -481,8 +501,8 @@ pub fn markdown(rows: &[serde_json::Value]) -> String {
     s.push_str(&markdown_table(
         "Table 5.2 (memory): peak resident set of a long dragon gradient (child process)",
         "RSS before = after setting up the problem; peak = VmHWM after the gradient; gradient = \
-         peak - before; trajectory = stored u, v and cost gradients by count; MB = 1e6 bytes. \
-         Thesis: 540 MB for 300 steps after recomputation (sec. 5.7, thesis, GTX 1060).",
+         peak - before; trajectory = the stored u and v (3 f64 per node, every frame) by count; \
+         MB = 1e6 bytes. Thesis: 540 MB for 300 steps after recomputation (sec. 5.7, thesis, GTX 1060).",
         &mem,
         &memory_columns(),
     ));

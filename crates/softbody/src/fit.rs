@@ -49,9 +49,14 @@ pub struct Args {
     /// Override `[time].steps`.
     #[arg(long)]
     pub steps: Option<usize>,
-    /// surface (distance to the simulated surface mesh) | levelset (the thesis' phi(t)(x), eq. 5.4.4).
+    /// surface (distance to the simulated surface mesh, along the viewing rays when the cameras
+    /// are known) | levelset (the thesis' phi(t)(x), eq. 5.4.4).
     #[arg(long, default_value = "surface")]
     pub cost: String,
+    /// Camera eyes (JSON written by `observe` beside the CSV; default: OBS.cameras.json if it
+    /// exists). Residuals are then measured along each point's viewing ray.
+    #[arg(long)]
+    pub cameras: Option<PathBuf>,
     /// Print exactly one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -169,6 +174,17 @@ pub fn run(args: Args) -> Result<(), String> {
     let kind: adjoint::fit::CostKind = args.cost.parse().map_err(|e| format!("--cost: {e}"))?;
     let obs = Observations::read_csv(&args.observations).map_err(|e| e.to_string())?;
     adjoint::fit::check_frames(&obs, &args.observations, args.steps.unwrap_or(scene.time.steps))?;
+    let eyes = match &args.cameras {
+        Some(p) => adjoint::fit::read_camera_eyes(p)?,
+        None => {
+            let p = adjoint::fit::cameras_path(&args.observations);
+            if p.exists() {
+                adjoint::fit::read_camera_eyes(&p)?
+            } else {
+                Vec::new()
+            }
+        }
+    };
     if obs.is_empty() {
         return Err(format!("{}: no observed points", args.observations.display()));
     }
@@ -179,7 +195,7 @@ pub fn run(args: Args) -> Result<(), String> {
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
     let log_path = out.join("fit.log");
 
-    let mut problem = scene_problem(&scene, &obs, params.clone(), robust, args.steps, kind)?;
+    let mut problem = scene_problem(&scene, &obs, params.clone(), robust, args.steps, kind, &eyes)?;
     let x_start = problem.x0();
     let initial_values = params.values(&problem.model_at(&x_start));
 
@@ -276,6 +292,13 @@ pub fn run(args: Args) -> Result<(), String> {
     };
     let model = objective.problem.model_at(&x_best);
     let final_values = params.values(&model);
+    // uncertainty from the Gauss-Newton matrix at the result (one tangent-linear pass; not for
+    // the many coefficients of a stiffness field)
+    let std_errors = if x_best.len() <= 30 {
+        adjoint::fit::standard_errors(objective.problem, &x_best, &ev_final)?
+    } else {
+        None
+    };
     let files = crate::fit_report::write(&out, &history, &initial_values, &ev_initial, &ev_final)?;
     let summary = json!({
         "scene": args.scene,
@@ -283,6 +306,7 @@ pub fn run(args: Args) -> Result<(), String> {
         "optimizer": optimizer.to_string(),
         "parameters": values_json(&final_values),
         "initial_parameters": values_json(&initial_values),
+        "standard_errors": std_errors.as_ref().map(|v| values_json(v)),
         "cost": {"initial": ev_initial.cost, "final": ev_final.cost},
         "rms": {"initial": ev_initial.rms(), "final": ev_final.rms()},
         "iterations": history.len().saturating_sub(1),

@@ -27,9 +27,14 @@ pub struct Args {
     /// Override `[time].steps`.
     #[arg(long)]
     pub steps: Option<usize>,
-    /// surface (distance to the simulated surface mesh) | levelset (the thesis' phi(t)(x), eq. 5.4.4).
+    /// surface (distance to the simulated surface mesh, along the viewing rays when the cameras
+    /// are known) | levelset (the thesis' phi(t)(x), eq. 5.4.4).
     #[arg(long, default_value = "surface")]
     pub cost: String,
+    /// Camera eyes (JSON written by `observe` beside the CSV; default: OBS.cameras.json if it
+    /// exists). Residuals are then measured along each point's viewing ray.
+    #[arg(long)]
+    pub cameras: Option<PathBuf>,
     /// Print exactly one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -51,8 +56,19 @@ pub fn run(args: Args) -> Result<(), String> {
     let kind: adjoint::fit::CostKind = args.cost.parse().map_err(|e| format!("--cost: {e}"))?;
     let obs = Observations::read_csv(&args.observations).map_err(|e| e.to_string())?;
     adjoint::fit::check_frames(&obs, &args.observations, args.steps.unwrap_or(scene.time.steps))?;
+    let eyes = match &args.cameras {
+        Some(p) => adjoint::fit::read_camera_eyes(p)?,
+        None => {
+            let p = adjoint::fit::cameras_path(&args.observations);
+            if p.exists() {
+                adjoint::fit::read_camera_eyes(&p)?
+            } else {
+                Vec::new()
+            }
+        }
+    };
     // the check needs the exact solve: a direct factorization instead of CG
-    let mut problem = scene_problem(&scene, &obs, params, Robust::Squared, args.steps, kind)?;
+    let mut problem = scene_problem(&scene, &obs, params, Robust::Squared, args.steps, kind, &eyes)?;
     problem.sim.solver.direct = true;
     adjoint::fit::check_observations(&mut problem, &obs, &args.observations)?;
     let rows = gradcheck(&mut problem, args.step)?;

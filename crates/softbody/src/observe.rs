@@ -218,6 +218,21 @@ pub fn run(a: Args) -> Result<(), String> {
     }
     pb.finish_and_clear();
     obs.write_csv(&out).map_err(|e| e.to_string())?;
+    // the cameras beside the CSV: `fit` measures residuals along their viewing rays
+    let cams_path = adjoint::fit::cameras_path(&out);
+    let cams_json = json!({
+        "cameras": cameras.iter().enumerate().map(|(i, c)| json!({
+            "id": i, "eye": c.eye, "target": c.target, "up": c.up, "fov_y": c.fov_y,
+            "width": c.width, "height": c.height,
+        })).collect::<Vec<_>>(),
+        "noise": a.noise,
+        "seed": a.seed,
+    });
+    std::fs::write(
+        &cams_path,
+        serde_json::to_string_pretty(&cams_json).expect("json"),
+    )
+    .map_err(|e| format!("{}: {e}", cams_path.display()))?;
 
     let preview_path = match (&a.preview, &last_mesh) {
         (Some(p), Some(mesh)) => {
@@ -262,6 +277,7 @@ pub fn run(a: Args) -> Result<(), String> {
         "points_per_frame": {"min": min, "max": max, "mean": mean},
         "points_per_camera": per_camera,
         "preview": preview_path,
+        "camera_file": cams_path.display().to_string(),
         "seconds": {"simulation": t_sim, "observation": t_obs, "total": t_total.elapsed().as_secs_f64()},
     });
     if a.json {

@@ -111,6 +111,9 @@ fn fit_recovers_the_truth_and_resumes() {
     assert!((e / 2000.0 - 1.0).abs() < 1e-3, "E = {e}");
     assert!((nu / 0.3 - 1.0).abs() < 1e-3, "nu = {nu}");
     assert_eq!(j["initial_parameters"]["young"].as_f64().unwrap().round(), 2600.0);
+    // noise-free: the standard errors are tiny
+    let se = j["standard_errors"]["young"].as_f64().unwrap();
+    assert!(se >= 0.0 && se < 1e-2 * e, "se(E) = {se}");
     assert!(j["rms"]["final"].as_f64().unwrap() < 1e-3 * j["rms"]["initial"].as_f64().unwrap());
     assert!(j["cost"]["final"].as_f64().unwrap() < j["cost"]["initial"].as_f64().unwrap());
     let history = j["history"].as_array().unwrap();

@@ -1,6 +1,6 @@
 //! `tables`: the thesis' Appendix B tables (cuMat benchmarks B.1-B.4, cuboid B.5/B.6) reproduced on this
 //! machine with gpumat, side by side with the unfused baseline, Eigen, numpy and the STREAM
-//! triad bandwidth.
+//! triad bandwidth, and the adjoint's Table 5.2 (forward / cost / backward per step, memory).
 //!
 //! ```sh
 //! cargo run --release -p bench --bin tables -- [--json] [--quick]
@@ -19,7 +19,7 @@ use serde::Serialize;
 use serde_json::{json, Value};
 use std::io::Write;
 
-/// Reproduces the thesis' Tables B.1-B.6 on this machine.
+/// Reproduces the thesis' Tables B.1-B.6 and 5.2 on this machine.
 #[derive(Parser, Debug)]
 #[command(version, about)]
 struct Args {
