@@ -441,16 +441,25 @@ pub fn invert_small(a: &[f64], n: usize) -> Option<Vec<f64>> {
     Some(inv)
 }
 
+/// First-order uncertainty of a fit (squared loss).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Uncertainty {
+    /// component labels ([`ParamSet::labels`])
+    pub labels: Vec<String>,
+    /// standard errors of the reported quantities, per label
+    pub std_errors: Vec<f64>,
+    /// covariance of `x` (`n x n`, row-major)
+    pub cov_x: Vec<f64>,
+    /// `d quantity / d x_k` ([`ParamSet::x_scales`])
+    pub scales: Vec<f64>,
+}
+
 /// First-order standard errors of the fitted quantities at `x` (squared loss): the covariance
 /// `s^2 H^{-1}` with the Gauss-Newton matrix `H = J^T J` of the tangent-linear pass and the
 /// residual variance `s^2 = sum r^2 / (N - n)` of the `N` residuals, mapped to the reported
 /// quantities by [`ParamSet::x_scales`]. `None` when `H` is singular (a parameter the data do
 /// not determine) or there are no more residuals than parameters.
-pub fn standard_errors(
-    problem: &mut Problem,
-    x: &[f64],
-    ev: &Evaluation,
-) -> Result<Option<Vec<(String, f64)>>, String> {
+pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<Option<Uncertainty>, String> {
     let n = x.len();
     let count: usize = ev.frames.iter().map(|f| f.count - f.outside).sum();
     if count <= n {
@@ -464,13 +473,14 @@ pub fn standard_errors(
     };
     let model = problem.model_at(x);
     let scales = problem.params.x_scales(&model);
-    Ok(Some(
-        problem
-            .params
-            .labels()
-            .into_iter()
-            .enumerate()
-            .map(|(k, l)| (l, scales[k] * (s2 * inv[k * n + k]).max(0.0).sqrt()))
-            .collect(),
-    ))
+    let cov_x: Vec<f64> = inv.iter().map(|v| v * s2).collect();
+    let std_errors = (0..n)
+        .map(|k| scales[k] * cov_x[k * n + k].max(0.0).sqrt())
+        .collect();
+    Ok(Some(Uncertainty {
+        labels: problem.params.labels(),
+        std_errors,
+        cov_x,
+        scales,
+    }))
 }

@@ -237,25 +237,33 @@ impl Problem {
         let frames = self.cost.frames();
         let mut cost_s = 0.0;
         // dJ/du(t) of an observed frame, recomputed from the stored state
-        let mut cost_grad = |cost: &dyn Cost, t: usize, u: &Matrix<Vec3<f64>>| -> Result<Matrix<Vec3<f64>>, ProblemError> {
-            let mut g = Matrix::zeros(n, 1, 1);
-            if frames.binary_search(&t).is_ok() {
-                let tc = Instant::now();
-                cost.frame_cost(t, u, Some(&mut g))
-                    .map_err(|e| ProblemError::Diverged(format!("frame {t}: {e}")))?;
-                cost_s += tc.elapsed().as_secs_f64();
-            }
-            Ok(g)
-        };
+        let mut cost_grad =
+            |cost: &dyn Cost, t: usize, u: &Matrix<Vec3<f64>>| -> Result<Matrix<Vec3<f64>>, ProblemError> {
+                let mut g = Matrix::zeros(n, 1, 1);
+                if frames.binary_search(&t).is_ok() {
+                    let tc = Instant::now();
+                    cost.frame_cost(t, u, Some(&mut g))
+                        .map_err(|e| ProblemError::Diverged(format!("frame {t}: {e}")))?;
+                    cost_s += tc.elapsed().as_secs_f64();
+                }
+                Ok(g)
+            };
         let mut ub = cost_grad(self.cost.as_ref(), self.steps, &traj.u[self.steps].unpack())?;
         let mut vb: Matrix<Vec3<f64>> = Matrix::zeros(n, 1, 1);
         let mut lam: Matrix<Vec3<f64>> = Matrix::zeros(n, 1, 1);
+        // the previous adjoint, for a linear extrapolation as the CG warm start
+        let mut lam_prev: Option<Matrix<Vec3<f64>>> = None;
         let c = 1.0 / (theta * dt);
         for step in (0..self.steps).rev() {
             let g = Matrix::eval(ub.ex() + vb.ex() * c);
             self.sim.u = traj.u[step].unpack();
             self.sim.v = traj.v[step].unpack();
             self.sim.assemble_system();
+            let last = lam.clone();
+            if let Some(prev) = &lam_prev {
+                lam.assign_with(|l| l * 2.0 - prev.ex());
+            }
+            lam_prev = Some(last);
             let (its, _, fallback) = self
                 .sim
                 .solve_newmark(&g, &mut lam)

@@ -294,12 +294,24 @@ pub fn run(args: Args) -> Result<(), String> {
     let final_values = params.values(&model);
     // uncertainty from the Gauss-Newton matrix at the result (one tangent-linear pass; not for
     // the many coefficients of a stiffness field)
-    let std_errors = if x_best.len() <= 30 {
-        adjoint::fit::standard_errors(objective.problem, &x_best, &ev_final)?
+    let unc = if x_best.len() <= 30 {
+        adjoint::fit::uncertainty(objective.problem, &x_best, &ev_final)?
     } else {
         None
     };
-    let files = crate::fit_report::write(&out, &history, &initial_values, &ev_initial, &ev_final)?;
+    let std_errors: Option<Vec<(String, f64)>> = unc.as_ref().map(|u| {
+        u.labels
+            .iter()
+            .cloned()
+            .zip(u.std_errors.iter().copied())
+            .collect()
+    });
+    let mut files = crate::fit_report::write(&out, &history, &initial_values, &ev_initial, &ev_final)?;
+    if let (Some(u), 2) = (&unc, x_best.len()) {
+        let path = out.join("uncertainty.png");
+        crate::fit_report::uncertainty_picture(&path, u, &history)?;
+        files["uncertainty"] = json!(path);
+    }
     let summary = json!({
         "scene": args.scene,
         "observations": args.observations,

@@ -108,3 +108,69 @@ pub fn write(
               "log": dir.join("fit.log"), "summary": dir.join("fit.json")}),
     )
 }
+
+/// For a two-parameter fit: the 1, 2 and 3 sigma ellipses of the first-order covariance around
+/// the result (the cost valley's shape: `cost ~ cost* + s^2/2 chi^2` on the k-sigma ellipse),
+/// in the reported quantities, with the optimizer's path.
+pub fn uncertainty_picture(
+    path: &Path,
+    u: &adjoint::fit::Uncertainty,
+    history: &[Value],
+) -> Result<(), String> {
+    let (c00, c01, c11) = (u.cov_x[0], u.cov_x[1], u.cov_x[3]);
+    // 2x2 Cholesky of the covariance
+    let l00 = c00.max(0.0).sqrt();
+    let l10 = if l00 > 0.0 { c01 / l00 } else { 0.0 };
+    let l11 = (c11 - l10 * l10).max(0.0).sqrt();
+    let centre = (u.scales[0], u.scales[1]);
+    // first order: quantity = value + scale * (x - x*)
+    let values: Vec<f64> = u
+        .labels
+        .iter()
+        .map(|l| {
+            history
+                .last()
+                .and_then(|h| h["parameters"][l].as_f64())
+                .unwrap_or(f64::NAN)
+        })
+        .collect();
+    let mut series = Vec::new();
+    for (k, sig) in [1.0, 2.0, 3.0].iter().enumerate() {
+        let pts: Vec<(f64, f64)> = (0..=96)
+            .map(|i| {
+                let t = i as f64 / 96.0 * std::f64::consts::TAU;
+                let (a, b) = (t.cos() * sig, t.sin() * sig);
+                let dx0 = l00 * a;
+                let dx1 = l10 * a + l11 * b;
+                (values[0] + centre.0 * dx0, values[1] + centre.1 * dx1)
+            })
+            .collect();
+        series.push(Series::new(format!("{sig:.0} sigma"), pts, palette(k)));
+    }
+    let path_pts: Vec<(f64, f64)> = history
+        .iter()
+        .map(|h| {
+            (
+                h["parameters"][&u.labels[0]].as_f64().unwrap_or(f64::NAN),
+                h["parameters"][&u.labels[1]].as_f64().unwrap_or(f64::NAN),
+            )
+        })
+        .collect();
+    let tail: Vec<(f64, f64)> = path_pts.iter().rev().take(1).copied().collect();
+    series.push(Series::new("result", tail, [0, 0, 0]).with_style(Style::Markers));
+    let chart = Chart {
+        title: "uncertainty of the result (first order)".into(),
+        x_label: u.labels[0].clone(),
+        y_label: u.labels[1].clone(),
+        series,
+        ..Chart::default()
+    };
+    let path_chart = Chart {
+        title: "optimizer path".into(),
+        x_label: u.labels[0].clone(),
+        y_label: u.labels[1].clone(),
+        series: vec![Series::new("iterates", path_pts, palette(3)).with_style(Style::LineMarkers)],
+        ..Chart::default()
+    };
+    save(&grid_of(vec![chart.render(), path_chart.render()], 2), path)
+}
