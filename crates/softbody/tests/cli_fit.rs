@@ -124,6 +124,7 @@ fn fit_recovers_the_truth_and_resumes() {
         "cost.png",
         "parameters.png",
         "rms_per_frame.png",
+        "uncertainty.png",
     ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
