@@ -188,3 +188,43 @@ fn full_cell_element_matrix() {
     assert_eq!(zeros, 6, "eigenvalues {eig:?}");
     assert!(eig.iter().all(|&e| e > -1e-8));
 }
+
+/// Cut cells with bit-identical volume weights share one stored block set (the cuboid's flat
+/// faces cut many cells alike), and every cell's blocks are exactly those of its own weights.
+#[test]
+fn element_blocks_share_sets_of_cells_cut_alike() {
+    use cutfem::fem::assembly::Material;
+    use cutfem::fem::Simulation;
+    let shape = cutfem::shapes::Shape::Box {
+        center: [0.0, 1.0, 0.0],
+        size: [1.29, 0.4, 0.8],
+    };
+    let grid = cutfem::fem::Grid::new(shape.to_sdf(16.0, 2).unwrap()).unwrap();
+    let sim = Simulation::new(grid, Model::default()).unwrap();
+    let (lambda, mu) = sim.model.lame();
+    let m = Material {
+        lambda,
+        mu,
+        eta: sim.model.nitsche_eta,
+    };
+    let blocks = sim.assembler.element_blocks(&sim.grid, &m);
+    let cut = sim.grid.cut_cells();
+    assert!(
+        blocks.cut_sets() > 0 && 2 * blocks.cut_sets() < cut,
+        "{} sets for {cut} cut cells",
+        blocks.cut_sets()
+    );
+    let t = sim.assembler.tables();
+    for (e, c) in sim.grid.cells.iter().enumerate() {
+        let w = &c.integrals.volume;
+        for i in 0..8 {
+            for j in 0..8 {
+                assert_eq!(
+                    blocks.get(e, i, j),
+                    t.block(w, i, j, lambda, mu),
+                    "cell {e} block ({i}, {j})"
+                );
+            }
+        }
+    }
+}

@@ -2,7 +2,8 @@
 //!
 //! A cuMat-style linear-algebra library (thesis ch. 3): batched dense matrices, lazy
 //! expressions fused into one pass, reductions, 3x3 block scalars, block-sparse (BSR)
-//! matrices on a shared pattern, batched preconditioned CG and a direct sparse Cholesky.
+//! matrices on a shared pattern, batched preconditioned CG (Jacobi, block-Jacobi, block
+//! incomplete Cholesky IC(0)) and a direct sparse Cholesky (AMD or nested-dissection order).
 //! The CPU backend runs the fused loops on rayon; the CUDA backend is a later addition
 //! ([`backend`]).
 //!

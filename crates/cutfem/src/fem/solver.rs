@@ -4,18 +4,21 @@
 //! Preconditioners ([`Preconditioner`], scene key `[numerics] preconditioner`):
 //!
 //! - `block_jacobi` (default): the inverse 3x3 diagonal blocks of `A`, rebuilt every step (the
-//!   thesis' choice; about 196 iterations per step on Table B.5's cuboid at r = 20).
-//! - `block_ic0`: block incomplete Cholesky IC(0) of `A` on its own 3x3 pattern, rebuilt every
-//!   step (a few percent of a step); about 3x fewer iterations than block-Jacobi and, with
-//!   the triangular solves, about half the CG time at r = 20.
+//!   thesis' choice; on the Table B.5 / B.6 cuboid at r = 20 with tolerance 1e-6 about 195 /
+//!   147 iterations per step, the thesis had 167 / 82).
+//! - `block_ic0`: block incomplete Cholesky of `A` on its own 3x3 pattern, relaxed-modified
+//!   ([`IC0_RELAXATION`], [`gpumat::BlockIc0`]), rebuilt every step (a few percent of a step).
+//!   About 27 / 29 iterations at r = 20 and, with its sequential triangular solves, about half
+//!   of block-Jacobi's CG time including the factorization: the fastest of the three.
 //! - `rest_cholesky`: a sparse Cholesky factor (nested-dissection order from the node
 //!   positions) of the first step's `A` (the rest state), reused as the preconditioner on later
 //!   steps while rotations stay moderate. The symbolic analysis is done once; the numeric
 //!   factorization is redone ([`gpumat::SparseCholesky::refactor`]) at the step after one whose
 //!   CG needed more than [`SolverSettings::refactor_iterations`] iterations, when CG fails
 //!   with a factor of an earlier matrix, and the analysis is redone when `A`'s pattern
-//!   changes. Fewest iterations (a handful), but each costs a sparse triangular solve of the
-//!   factor, and a factorization costs seconds at r = 20.
+//!   changes. Fewest iterations (about 6 / 12 at r = 20, one factorization per 30-step run),
+//!   but each costs a triangular solve of a factor with 8e7 entries and the factorization
+//!   costs seconds, so it is not faster than block-Jacobi on this machine.
 //!
 //! [`StepInfo`](super::StepInfo) counts the factorizations of a step and their seconds.
 

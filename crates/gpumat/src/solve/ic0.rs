@@ -151,7 +151,7 @@ where
                 }
                 let mut d = vals[diag[i].expect("checked above")];
                 for l in 0..3 {
-                    d.m[l][l] = d.m[l][l] * scale;
+                    d.m[l][l] *= scale;
                 }
                 d = d - moved[i];
                 for &(k, eki) in &centry[cptr[i]..cptr[i + 1]] {
