@@ -47,6 +47,14 @@ impl Robust {
             Robust::Huber(d) => r.clamp(-d, d),
         }
     }
+    /// The IRLS weight `rho'(r) / r` (1 at `r = 0`) of the Gauss-Newton matrix.
+    pub fn irls_weight(self, r: f64) -> f64 {
+        if r == 0.0 {
+            1.0
+        } else {
+            self.derivative(r) / r
+        }
+    }
 }
 
 /// What one frame's cost was.
@@ -65,6 +73,29 @@ pub struct FrameCost {
 }
 
 impl FrameCost {
+    /// The totals of `frame` for its points and their residuals (`None`: outside every cell or
+    /// triangle, charged `outside_residual`).
+    pub fn of_residuals(
+        frame: usize,
+        points: &[ObservedPoint],
+        residuals: impl Iterator<Item = Option<f64>>,
+        robust: Robust,
+        outside_residual: f64,
+    ) -> Self {
+        let mut fc = FrameCost {
+            frame,
+            count: points.len(),
+            ..Default::default()
+        };
+        for (pt, r) in points.iter().zip(residuals) {
+            fc.outside += usize::from(r.is_none());
+            let r = r.unwrap_or(outside_residual);
+            fc.cost += pt.weight * robust.value(r);
+            fc.sum_squared += r * r;
+        }
+        fc
+    }
+
     /// Root mean square residual of the frame.
     pub fn rms(&self) -> f64 {
         if self.count == 0 {
@@ -99,7 +130,7 @@ pub trait Cost: Send + Sync + std::fmt::Debug {
 }
 
 /// `J^T W J` for residual derivative columns `cols[k][i]` and weights `w[i]`.
-fn gauss_newton_matrix(cols: &[Vec<f64>], w: &[f64]) -> Vec<f64> {
+pub(crate) fn gauss_newton_matrix(cols: &[Vec<f64>], w: &[f64]) -> Vec<f64> {
     let n = cols.len();
     let mut h = vec![0.0; n * n];
     for a in 0..n {
@@ -188,6 +219,14 @@ pub struct ObservedPoint {
     pub eye: Option<Vec3<f64>>,
 }
 
+/// The points of `frame` in a per-frame list (none when the frame is not observed).
+pub fn frame_points(frames: &[(usize, Vec<ObservedPoint>)], frame: usize) -> &[ObservedPoint] {
+    frames
+        .iter()
+        .find(|f| f.0 == frame)
+        .map_or(&[], |f| f.1.as_slice())
+}
+
 /// A candidate cell of the point-cloud cost: its corners' band slots, reference positions and
 /// reference SDF values.
 #[derive(Clone, Copy, Debug)]
@@ -235,23 +274,26 @@ fn trilinear(a: [f64; 3]) -> ([f64; 8], [[f64; 3]; 8]) {
     (n, dn)
 }
 
-/// Solves `sum_k N_k(a) X_k = p` by Newton from the cell center; `Some(a, J_a)` when it
-/// converges to a point inside the closed cell.
-fn invert_trilinear(x: &[Vec3<f64>; 8], p: Vec3<f64>, h: f64) -> Option<([f64; 3], Mat3<f64>)> {
+/// `J_a = dX/da = sum_k X_k (dN_k/da)^T` of the trilinear map.
+fn trilinear_jacobian(x: &[Vec3<f64>; 8], dn: &[[f64; 3]; 8]) -> Mat3<f64> {
+    let mut cols = [Vec3::default(); 3];
+    for k in 0..8 {
+        for (d, c) in cols.iter_mut().enumerate() {
+            *c = *c + x[k] * dn[k][d];
+        }
+    }
+    Mat3::from_cols(cols[0], cols[1], cols[2])
+}
+
+/// Solves `sum_k N_k(a) X_k = p` by Newton from the cell center; `Some(a)` when it converges
+/// to a point inside the closed cell.
+fn invert_trilinear(x: &[Vec3<f64>; 8], p: Vec3<f64>, h: f64) -> Option<[f64; 3]> {
     let mut a = [0.5; 3];
     for _ in 0..30 {
         let (n, dn) = trilinear(a);
-        let mut pos = Vec3::default();
-        let mut cols = [Vec3::default(); 3];
-        for k in 0..8 {
-            pos = pos + x[k] * n[k];
-            for (d, c) in cols.iter_mut().enumerate() {
-                *c = *c + x[k] * dn[k][d];
-            }
-        }
-        let j = Mat3::from_cols(cols[0], cols[1], cols[2]);
+        let pos = (0..8).fold(Vec3::default(), |s, k| s + x[k] * n[k]);
         let r = pos - p;
-        let inv = j.inverse()?;
+        let inv = trilinear_jacobian(x, &dn).inverse()?;
         let step = (inv * r).to_array();
         for d in 0..3 {
             a[d] -= step[d];
@@ -264,18 +306,7 @@ fn invert_trilinear(x: &[Vec3<f64>; 8], p: Vec3<f64>, h: f64) -> Option<([f64; 3
         }
     }
     let tol = 1e-9;
-    if a.iter().all(|&v| v >= -tol && v <= 1.0 + tol) {
-        let (_, dn) = trilinear(a);
-        let mut cols = [Vec3::default(); 3];
-        for k in 0..8 {
-            for (d, c) in cols.iter_mut().enumerate() {
-                *c = *c + x[k] * dn[k][d];
-            }
-        }
-        Some((a, Mat3::from_cols(cols[0], cols[1], cols[2])))
-    } else {
-        None
-    }
+    a.iter().all(|&v| v >= -tol && v <= 1.0 + tol).then_some(a)
 }
 
 impl PointCloudCost {
@@ -333,10 +364,7 @@ impl PointCloudCost {
 
     /// The observed points of `frame`.
     pub fn points(&self, frame: usize) -> &[ObservedPoint] {
-        self.frames
-            .iter()
-            .find(|f| f.0 == frame)
-            .map_or(&[], |f| f.1.as_slice())
+        frame_points(&self.frames, frame)
     }
 
     /// The diffusion band.
@@ -398,7 +426,7 @@ impl PointCloudCost {
                 cands.iter().find_map(|&ci| {
                     let c = &self.cells[ci as usize];
                     let x = self.corners(c, u_slots);
-                    let (a, _) = invert_trilinear(&x, pt.position, self.h)?;
+                    let a = invert_trilinear(&x, pt.position, self.h)?;
                     let (n, _) = trilinear(a);
                     let residual = (0..8).map(|k| n[k] * c.phi[k]).sum();
                     Some(PointHit {
@@ -411,6 +439,19 @@ impl PointCloudCost {
             .collect()
     }
 
+    /// The residual's linearization at a hit: `dr/du_k = -N_k(a) q` for the 8 corners, with
+    /// `q = J_a^{-T} g_a` (module docs); `None` for a singular deformed cell.
+    fn linearization(&self, hit: &PointHit, u_slots: &[Vec3<f64>]) -> Option<([f64; 8], Vec3<f64>)> {
+        let c = &self.cells[hit.cell];
+        let x = self.corners(c, u_slots);
+        let (n, dn) = trilinear(hit.alpha);
+        let ga = (0..8).fold(Vec3::default(), |s, k| {
+            s + Vec3::new(dn[k][0], dn[k][1], dn[k][2]) * c.phi[k]
+        });
+        let jinv = trilinear_jacobian(&x, &dn).inverse()?;
+        Some((n, jinv.transpose() * ga))
+    }
+
     /// The cost of `frame` for band displacements `u_slots`; with `grad_slots`, adds the
     /// gradient per slot.
     pub fn frame_cost_slots(
@@ -421,36 +462,15 @@ impl PointCloudCost {
     ) -> (FrameCost, Vec<Option<PointHit>>) {
         let points = self.points(frame);
         let hits = self.locate(frame, u_slots);
-        let mut fc = FrameCost {
-            frame,
-            count: points.len(),
-            ..Default::default()
-        };
-        for (pt, hit) in points.iter().zip(&hits) {
-            let r = hit.map_or(self.outside_residual, |h| h.residual);
-            if hit.is_none() {
-                fc.outside += 1;
-            }
-            fc.cost += pt.weight * self.robust.value(r);
-            fc.sum_squared += r * r;
-        }
+        let residuals = hits.iter().map(|h| h.map(|h| h.residual));
+        let fc = FrameCost::of_residuals(frame, points, residuals, self.robust, self.outside_residual);
         if let Some(g) = grad_slots {
             for (pt, hit) in points.iter().zip(&hits) {
                 let Some(hit) = hit else { continue };
                 let c = &self.cells[hit.cell];
-                let x = self.corners(c, u_slots);
-                let (n, dn) = trilinear(hit.alpha);
-                let mut cols = [Vec3::default(); 3];
-                let mut ga = [0.0; 3];
-                for k in 0..8 {
-                    for d in 0..3 {
-                        cols[d] = cols[d] + x[k] * dn[k][d];
-                        ga[d] += c.phi[k] * dn[k][d];
-                    }
-                }
-                let j = Mat3::from_cols(cols[0], cols[1], cols[2]);
-                let Some(jinv) = j.inverse() else { continue };
-                let q = jinv.transpose() * Vec3::new(ga[0], ga[1], ga[2]);
+                let Some((n, q)) = self.linearization(hit, u_slots) else {
+                    continue;
+                };
                 let s = pt.weight * self.robust.derivative(hit.residual);
                 for k in 0..8 {
                     let slot = c.slots[k] as usize;
@@ -503,27 +523,10 @@ impl Cost for PointCloudCost {
         for (pt, hit) in points.iter().zip(&hits) {
             let Some(hit) = hit else { continue };
             let c = &self.cells[hit.cell];
-            let x = self.corners(c, &u_slots);
-            let (n, dn) = trilinear(hit.alpha);
-            let mut jc = [Vec3::default(); 3];
-            let mut ga = [0.0; 3];
-            for k in 0..8 {
-                for d in 0..3 {
-                    jc[d] = jc[d] + x[k] * dn[k][d];
-                    ga[d] += c.phi[k] * dn[k][d];
-                }
-            }
-            let Some(jinv) = Mat3::from_cols(jc[0], jc[1], jc[2]).inverse() else {
+            let Some((n, q)) = self.linearization(hit, &u_slots) else {
                 continue;
             };
-            let q = jinv.transpose() * Vec3::new(ga[0], ga[1], ga[2]);
-            let r = hit.residual;
-            let irls = if r == 0.0 {
-                1.0
-            } else {
-                self.robust.derivative(r) / r
-            };
-            w.push(pt.weight * irls);
+            w.push(pt.weight * self.robust.irls_weight(hit.residual));
             for (col, ds) in cols.iter_mut().zip(&d_slots) {
                 let s: f64 = (0..8).map(|k| -n[k] * q.dot(ds[c.slots[k] as usize])).sum();
                 col.push(s);

@@ -19,7 +19,7 @@
 //! searching the point's bin and its neighbours within `2h`; a point farther than that from every
 //! triangle gets the constant cost `rho(2h)` and no gradient.
 
-use crate::cost::{Cost, FrameCost, ObservedPoint, Robust};
+use crate::cost::{frame_points, gauss_newton_matrix, Cost, FrameCost, ObservedPoint, Robust};
 use cutfem::fem::grid::INACTIVE;
 use cutfem::fem::Grid;
 use cutfem::surface::{extract_surface, Surface};
@@ -102,6 +102,36 @@ fn node_u(u: &[Vec3<f64>], d: u32) -> Vec3<f64> {
     }
 }
 
+/// The triangle in the bins within two of bin `c` with the smallest `key` (`None`: skip it),
+/// ties going to the lower face index: `(key, face, barycentric)`.
+fn best_near_face(
+    hash: &HashMap<[i64; 3], Vec<u32>>,
+    c: [i64; 3],
+    mut key: impl FnMut(u32) -> Option<(f64, [f64; 3])>,
+) -> Option<(f64, usize, [f64; 3])> {
+    let mut best: Option<(f64, usize, [f64; 3])> = None;
+    for dz in -2..=2 {
+        for dy in -2..=2 {
+            for dx in -2..=2 {
+                let Some(list) = hash.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
+                    continue;
+                };
+                for &fi in list {
+                    let Some((k, bary)) = key(fi) else { continue };
+                    let better = match best {
+                        None => true,
+                        Some((bk, bf, _)) => k < bk || (k == bk && (fi as usize) < bf),
+                    };
+                    if better {
+                        best = Some((k, fi as usize, bary));
+                    }
+                }
+            }
+        }
+    }
+    best
+}
+
 /// Rays meeting a triangle at `|n . d|` below this use the closest-point residual instead.
 pub const GRAZING: f64 = 0.1;
 
@@ -166,10 +196,7 @@ impl SurfaceCost {
 
     /// The observed points of `frame`.
     pub fn points(&self, frame: usize) -> &[ObservedPoint] {
-        self.frames
-            .iter()
-            .find(|f| f.0 == frame)
-            .map_or(&[], |f| f.1.as_slice())
+        frame_points(&self.frames, frame)
     }
 
     /// The deformed vertex positions for the dof displacement `u`.
@@ -225,31 +252,12 @@ impl SurfaceCost {
                         return Some(hit);
                     }
                 }
-                let mut best: Option<(f64, usize, [f64; 3])> = None;
-                for dz in -2..=2 {
-                    for dy in -2..=2 {
-                        for dx in -2..=2 {
-                            let Some(list) = hash.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
-                                continue;
-                            };
-                            for &fi in list {
-                                let f = faces[fi as usize];
-                                let [a, b, cc] = f.map(|v| x[v as usize]);
-                                let bary = closest_on_triangle(p, a, b, cc);
-                                let q = a * bary[0] + b * bary[1] + cc * bary[2];
-                                let d2 = (p - q).dot(p - q);
-                                // ties (shared edges and vertices) go to the lower face index
-                                let better = match best {
-                                    None => true,
-                                    Some((bd, bf, _)) => d2 < bd || (d2 == bd && (fi as usize) < bf),
-                                };
-                                if better {
-                                    best = Some((d2, fi as usize, bary));
-                                }
-                            }
-                        }
-                    }
-                }
+                let best = best_near_face(&hash, c, |fi| {
+                    let [a, b, cc] = faces[fi as usize].map(|v| x[v as usize]);
+                    let bary = closest_on_triangle(p, a, b, cc);
+                    let q = a * bary[0] + b * bary[1] + cc * bary[2];
+                    Some(((p - q).dot(p - q), bary))
+                });
                 let (d2, face, bary) = best?;
                 if d2.sqrt() > reach {
                     return None;
@@ -291,29 +299,10 @@ impl SurfaceCost {
             return None;
         }
         let d = (p - eye) * (1.0 / s_obs);
-        let mut best: Option<(f64, usize, [f64; 3])> = None;
-        for dz in -2..=2 {
-            for dy in -2..=2 {
-                for dx in -2..=2 {
-                    let Some(list) = hash.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
-                        continue;
-                    };
-                    for &fi in list {
-                        let [a, b, cc] = faces[fi as usize].map(|v| x[v as usize]);
-                        let Some((t, bary)) = ray_triangle(eye, d, a, b, cc) else {
-                            continue;
-                        };
-                        let better = match best {
-                            None => true,
-                            Some((bt, bf, _)) => t < bt || (t == bt && (fi as usize) < bf),
-                        };
-                        if better {
-                            best = Some((t, fi as usize, bary));
-                        }
-                    }
-                }
-            }
-        }
+        let best = best_near_face(hash, c, |fi| {
+            let [a, b, cc] = faces[fi as usize].map(|v| x[v as usize]);
+            ray_triangle(eye, d, a, b, cc)
+        });
         let (t, face, bary) = best?;
         let [a, b, cc] = faces[face].map(|v| x[v as usize]);
         let n = (b - a).cross(cc - a);
@@ -377,17 +366,8 @@ impl Cost for SurfaceCost {
     ) -> Result<FrameCost, String> {
         let points = self.points(frame);
         let hits = self.residuals(frame, u);
-        let mut fc = FrameCost {
-            frame,
-            count: points.len(),
-            ..Default::default()
-        };
-        for (pt, hit) in points.iter().zip(&hits) {
-            let r = hit.map_or(self.outside_residual, |h| h.residual);
-            fc.outside += usize::from(hit.is_none());
-            fc.cost += pt.weight * self.robust.value(r);
-            fc.sum_squared += r * r;
-        }
+        let residuals = hits.iter().map(|h| h.map(|h| h.residual));
+        let fc = FrameCost::of_residuals(frame, points, residuals, self.robust, self.outside_residual);
         if let Some(g) = grad {
             let gs = g.as_mut_slice();
             for (pt, hit) in points.iter().zip(&hits) {
@@ -407,24 +387,15 @@ impl Cost for SurfaceCost {
     ) -> Result<Vec<f64>, String> {
         let points = self.points(frame);
         let hits = self.residuals(frame, u);
-        let n = du.len();
-        let mut h = vec![0.0; n * n];
+        let mut cols = vec![Vec::with_capacity(points.len()); du.len()];
+        let mut w = Vec::with_capacity(points.len());
         for (pt, hit) in points.iter().zip(&hits) {
             let Some(hit) = hit else { continue };
-            let r = hit.residual;
-            let w = pt.weight
-                * if r == 0.0 {
-                    1.0
-                } else {
-                    self.robust.derivative(r) / r
-                };
-            let j: Vec<f64> = du.iter().map(|d| self.directional(hit, d.as_slice())).collect();
-            for a in 0..n {
-                for b in 0..n {
-                    h[a * n + b] += w * j[a] * j[b];
-                }
+            w.push(pt.weight * self.robust.irls_weight(hit.residual));
+            for (col, d) in cols.iter_mut().zip(du) {
+                col.push(self.directional(hit, d.as_slice()));
             }
         }
-        Ok(h)
+        Ok(gauss_newton_matrix(&cols, &w))
     }
 }

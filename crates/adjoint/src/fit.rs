@@ -346,6 +346,23 @@ pub struct GradCheck {
     pub rel_error: f64,
 }
 
+impl GradCheck {
+    fn new(name: String, adjoint: f64, finite_difference: f64, step: f64) -> Self {
+        let den = adjoint.abs().max(finite_difference.abs());
+        GradCheck {
+            name,
+            adjoint,
+            finite_difference,
+            step,
+            rel_error: if den == 0.0 {
+                0.0
+            } else {
+                (adjoint - finite_difference).abs() / den
+            },
+        }
+    }
+}
+
 /// Compares the adjoint gradient in physical units with central differences of the whole
 /// simulation, one component at a time, with step `rel_step * max(|value|, scale)` where `scale`
 /// is 1 for vectors and heights.
@@ -367,14 +384,7 @@ pub fn gradcheck(problem: &mut Problem, rel_step: f64) -> Result<Vec<GradCheck>,
                 problem.evaluate(&x).map(|e| e.cost).map_err(|e| e.to_string())
             };
             let fd = (at(step)? - at(-step)?) / (2.0 * step);
-            let den = an.abs().max(fd.abs());
-            out.push(GradCheck {
-                name,
-                adjoint: an,
-                finite_difference: fd,
-                step,
-                rel_error: if den == 0.0 { 0.0 } else { (an - fd).abs() / den },
-            });
+            out.push(GradCheck::new(name, an, fd, step));
             continue;
         }
         let v = get_physical(&model0, &name).ok_or_else(|| format!("unknown component {name}"))?;
@@ -391,14 +401,7 @@ pub fn gradcheck(problem: &mut Problem, rel_step: f64) -> Result<Vec<GradCheck>,
                 .map_err(|e| e.to_string())
         };
         let fd = (cost_at(v + step)? - cost_at(v - step)?) / (2.0 * step);
-        let den = an.abs().max(fd.abs());
-        out.push(GradCheck {
-            name,
-            adjoint: an,
-            finite_difference: fd,
-            step,
-            rel_error: if den == 0.0 { 0.0 } else { (an - fd).abs() / den },
-        });
+        out.push(GradCheck::new(name, an, fd, step));
     }
     Ok(out)
 }

@@ -416,16 +416,8 @@ impl ParamSet {
         let (e, nu) = (model.young, model.poisson);
         for p in &self.params {
             match p {
-                Param::Young => {
-                    let dl = nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
-                    let dm = 1.0 / (2.0 * (1.0 + nu));
-                    out.push((g.lambda * dl + g.mu * dm) * e);
-                }
-                Param::Poisson => {
-                    let dl = e * (1.0 + 2.0 * nu * nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)).powi(2);
-                    let dm = -e / (2.0 * (1.0 + nu) * (1.0 + nu));
-                    out.push((g.lambda * dl + g.mu * dm) * nu * (1.0 - 2.0 * nu));
-                }
+                Param::Young => out.push(young_poisson_gradient(model, g).0 * e),
+                Param::Poisson => out.push(young_poisson_gradient(model, g).1 * nu * (1.0 - 2.0 * nu)),
                 Param::Density => out.push(g.density * model.density),
                 Param::DampingMass => out.push(g.damping_mass * model.damping_mass),
                 Param::DampingStiffness => out.push(g.damping_stiffness * model.damping_stiffness),
@@ -483,7 +475,6 @@ impl ParamSet {
     /// `dJ/dheight`.
     pub fn physical(&self, model: &Model, g: &PhysicalGradient) -> Vec<(String, f64)> {
         let mut out = Vec::new();
-        let (e, nu) = (model.young, model.poisson);
         let xyz = |name: &str, v: Vec3<f64>| {
             ["x", "y", "z"]
                 .iter()
@@ -493,16 +484,8 @@ impl ParamSet {
         };
         for p in &self.params {
             match p {
-                Param::Young => {
-                    let dl = nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
-                    let dm = 1.0 / (2.0 * (1.0 + nu));
-                    out.push(("young".into(), g.lambda * dl + g.mu * dm));
-                }
-                Param::Poisson => {
-                    let dl = e * (1.0 + 2.0 * nu * nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)).powi(2);
-                    let dm = -e / (2.0 * (1.0 + nu) * (1.0 + nu));
-                    out.push(("poisson".into(), g.lambda * dl + g.mu * dm));
-                }
+                Param::Young => out.push(("young".into(), young_poisson_gradient(model, g).0)),
+                Param::Poisson => out.push(("poisson".into(), young_poisson_gradient(model, g).1)),
                 Param::Density => out.push(("density".into(), g.density)),
                 Param::DampingMass => out.push(("damping_mass".into(), g.damping_mass)),
                 Param::DampingStiffness => out.push(("damping_stiffness".into(), g.damping_stiffness)),
@@ -529,6 +512,16 @@ impl ParamSet {
         }
         out
     }
+}
+
+/// `(dJ/dE, dJ/dnu)` from `(dJ/dlambda, dJ/dmu)` at the model's `E`, `nu` (eq. 5.5.5, module
+/// docs).
+pub fn young_poisson_gradient(model: &Model, g: &PhysicalGradient) -> (f64, f64) {
+    let (e, nu) = (model.young, model.poisson);
+    let de = g.lambda * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)) + g.mu / (2.0 * (1.0 + nu));
+    let dnu = g.lambda * e * (1.0 + 2.0 * nu * nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)).powi(2)
+        - g.mu * e / (2.0 * (1.0 + nu) * (1.0 + nu));
+    (de, dnu)
 }
 
 fn v3(s: &[f64]) -> Vec3<f64> {

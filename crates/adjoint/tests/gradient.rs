@@ -180,33 +180,7 @@ fn taylor_remainder_is_second_order() {
 fn point_cloud_cost_gradient_matches_finite_differences() {
     // observations: the truth's deformed surface vertices
     let g = grid();
-    let surface = extract_surface(&g.sdf);
-    let reference = trajectory(truth());
-    let frames: Vec<(usize, Vec<ObservedPoint>)> = (2..=STEPS)
-        .step_by(3)
-        .map(|t| {
-            let u = &reference[t];
-            let mesh = surface.deformed(|node| {
-                let d = g.node_dofs[node];
-                if d == cutfem::fem::grid::INACTIVE {
-                    [0.0; 3]
-                } else {
-                    u.get(d as usize, 0, 0).to_array()
-                }
-            });
-            let pts = mesh
-                .vertices
-                .iter()
-                .step_by(3)
-                .map(|v| ObservedPoint {
-                    position: Vec3::new(v[0], v[1], v[2]),
-                    weight: 1.0,
-                    eye: None,
-                })
-                .collect();
-            (t, pts)
-        })
-        .collect();
+    let frames = surface_observations(&g);
     let mut band = Diffusion::new(&g).unwrap();
     band.params.tolerance = 1e-14;
     let cost = PointCloudCost::new(&g, band, frames, Robust::Squared);

@@ -6,12 +6,11 @@
 //! iteration. The report folder gets `fit.json` and PNG plots of the cost and the parameters per
 //! iteration and of the rms per frame before and after.
 
+use crate::problem_args::{Loaded, ProblemArgs};
 use crate::progress;
 use adjoint::cost::Robust;
 use adjoint::fit::{check_observations, find_evaluation, scene_problem, FitObjective};
-use adjoint::observations::Observations;
 use adjoint::optim::{minimize, OptimParams, Optimizer};
-use adjoint::params::ParamSet;
 use adjoint::problem::Evaluation;
 use cutfem::scene::Scene;
 use serde_json::{json, Map, Value};
@@ -23,14 +22,8 @@ use std::time::Instant;
 /// Arguments of `fit`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The scene file (TOML): the model to fit and its starting values.
-    pub scene: PathBuf,
-    /// Observed surface points (CSV: frame,x,y,z[,camera][,weight]).
-    #[arg(long)]
-    pub observations: PathBuf,
-    /// Parameters to fit, comma separated (default: [fit].parameters, else young,poisson).
-    #[arg(long)]
-    pub params: Option<String>,
+    #[command(flatten)]
+    pub problem: ProblemArgs,
     /// lbfgs | gd | gauss-newton (default: [fit].optimizer, else lbfgs).
     #[arg(long)]
     pub optimizer: Option<String>,
@@ -46,17 +39,6 @@ pub struct Args {
     /// Huber loss threshold (world units) against outliers (default: squared distances).
     #[arg(long)]
     pub huber: Option<f64>,
-    /// Override `[time].steps`.
-    #[arg(long)]
-    pub steps: Option<usize>,
-    /// surface (distance to the simulated surface mesh, along the viewing rays when the cameras
-    /// are known) | levelset (the thesis' phi(t)(x), eq. 5.4.4).
-    #[arg(long, default_value = "surface")]
-    pub cost: String,
-    /// Camera eyes (JSON written by `observe` beside the CSV; default: OBS.cameras.json if it
-    /// exists). Residuals are then measured along each point's viewing ray.
-    #[arg(long)]
-    pub cameras: Option<PathBuf>,
     /// Print exactly one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -150,14 +132,14 @@ fn read_log(path: &Path) -> Result<Vec<Value>, String> {
 /// Runs `fit`.
 pub fn run(args: Args) -> Result<(), String> {
     let t0 = Instant::now();
-    let scene = Scene::load(&args.scene).map_err(|e| e.to_string())?;
-    let section = fit_section(&scene)?;
-    let names: Vec<String> = match (&args.params, &section.parameters) {
-        (Some(p), _) => vec![p.clone()],
-        (None, Some(p)) => p.clone(),
-        (None, None) => vec!["young,poisson".into()],
-    };
-    let params = ParamSet::parse(&names).map_err(|e| format!("--params: {e}"))?;
+    let Loaded {
+        scene,
+        section,
+        params,
+        kind,
+        observations: obs,
+        eyes,
+    } = args.problem.load()?;
     let optimizer: Optimizer = args
         .optimizer
         .clone()
@@ -171,31 +153,28 @@ pub fn run(args: Args) -> Result<(), String> {
         Some(d) => return Err(format!("--huber: the threshold must be positive, got {d}")),
         None => Robust::Squared,
     };
-    let kind: adjoint::fit::CostKind = args.cost.parse().map_err(|e| format!("--cost: {e}"))?;
-    let obs = Observations::read_csv(&args.observations).map_err(|e| e.to_string())?;
-    adjoint::fit::check_frames(&obs, &args.observations, args.steps.unwrap_or(scene.time.steps))?;
-    let eyes = match &args.cameras {
-        Some(p) => adjoint::fit::read_camera_eyes(p)?,
-        None => {
-            let p = adjoint::fit::cameras_path(&args.observations);
-            if p.exists() {
-                adjoint::fit::read_camera_eyes(&p)?
-            } else {
-                Vec::new()
-            }
-        }
-    };
     if obs.is_empty() {
-        return Err(format!("{}: no observed points", args.observations.display()));
+        return Err(format!(
+            "{}: no observed points",
+            args.problem.observations.display()
+        ));
     }
     let out = args
         .out
         .clone()
-        .unwrap_or_else(|| crate::simulate::default_out(&args.scene, "fit"));
+        .unwrap_or_else(|| crate::simulate::default_out(&args.problem.scene, "fit"));
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
     let log_path = out.join("fit.log");
 
-    let mut problem = scene_problem(&scene, &obs, params.clone(), robust, args.steps, kind, &eyes)?;
+    let mut problem = scene_problem(
+        &scene,
+        &obs,
+        params.clone(),
+        robust,
+        args.problem.steps,
+        kind,
+        &eyes,
+    )?;
     let x_start = problem.x0();
     let initial_values = params.values(&problem.model_at(&x_start));
 
@@ -232,7 +211,7 @@ pub fn run(args: Args) -> Result<(), String> {
         .map_or(0, |v| v as usize);
 
     // the start: rms per frame before fitting (and the observations' sanity)
-    let ev_initial = check_observations(&mut problem, &obs, &args.observations)?;
+    let ev_initial = check_observations(&mut problem, &obs, &args.problem.observations)?;
 
     let bar = progress::bar(iterations as u64 + 1, "fit", args.json);
     let mut log = std::fs::OpenOptions::new()
@@ -313,8 +292,8 @@ pub fn run(args: Args) -> Result<(), String> {
         files["uncertainty"] = json!(path);
     }
     let summary = json!({
-        "scene": args.scene,
-        "observations": args.observations,
+        "scene": args.problem.scene,
+        "observations": args.problem.observations,
         "optimizer": optimizer.to_string(),
         "parameters": values_json(&final_values),
         "initial_parameters": values_json(&initial_values),

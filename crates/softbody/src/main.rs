@@ -9,6 +9,7 @@ mod gradcheck;
 mod observe;
 #[allow(dead_code)]
 mod plot;
+mod problem_args;
 mod progress;
 mod simulate;
 

@@ -1,0 +1,90 @@
+//! What `fit` and `gradcheck` share: the scene, the observations, the fitted parameters, the
+//! cost and the camera file, read and checked the same way.
+
+use adjoint::fit::{cameras_path, check_frames, read_camera_eyes, CostKind};
+use adjoint::observations::Observations;
+use adjoint::params::ParamSet;
+use cutfem::scene::Scene;
+use std::path::PathBuf;
+
+/// The arguments naming a reconstruction problem.
+#[derive(clap::Args, Debug)]
+pub struct ProblemArgs {
+    /// The scene file (TOML): the model to fit and its starting values.
+    pub scene: PathBuf,
+    /// Observed surface points (CSV: frame,x,y,z[,camera][,weight]).
+    #[arg(long)]
+    pub observations: PathBuf,
+    /// Parameters, comma separated (default: [fit].parameters, else young,poisson).
+    #[arg(long)]
+    pub params: Option<String>,
+    /// Override `[time].steps`.
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// surface (distance to the simulated surface mesh, along the viewing rays when the cameras
+    /// are known) | levelset (the thesis' phi(t)(x), eq. 5.4.4).
+    #[arg(long, default_value = "surface")]
+    pub cost: String,
+    /// Camera eyes (JSON written by `observe` beside the CSV; default: OBS.cameras.json if it
+    /// exists). Residuals are then measured along each point's viewing ray.
+    #[arg(long)]
+    pub cameras: Option<PathBuf>,
+}
+
+/// A loaded problem description.
+#[derive(Debug)]
+pub struct Loaded {
+    /// the scene
+    pub scene: Scene,
+    /// its `[fit]` section
+    pub section: crate::fit::FitSection,
+    /// the fitted parameters
+    pub params: ParamSet,
+    /// the residual
+    pub kind: CostKind,
+    /// the observations (frames checked against the simulated steps)
+    pub observations: Observations,
+    /// the camera eyes (empty when unknown)
+    pub eyes: Vec<[f64; 3]>,
+}
+
+impl ProblemArgs {
+    /// Reads the scene, its `[fit]` section, the parameters, the cost, the observations and the
+    /// cameras; every failure is one line naming the file, line, key or flag.
+    pub fn load(&self) -> Result<Loaded, String> {
+        let scene = Scene::load(&self.scene).map_err(|e| e.to_string())?;
+        let section = crate::fit::fit_section(&scene)?;
+        let names: Vec<String> = match (&self.params, &section.parameters) {
+            (Some(p), _) => vec![p.clone()],
+            (None, Some(p)) => p.clone(),
+            (None, None) => vec!["young,poisson".into()],
+        };
+        let params = ParamSet::parse(&names).map_err(|e| format!("--params: {e}"))?;
+        let kind: CostKind = self.cost.parse().map_err(|e| format!("--cost: {e}"))?;
+        let observations = Observations::read_csv(&self.observations).map_err(|e| e.to_string())?;
+        check_frames(
+            &observations,
+            &self.observations,
+            self.steps.unwrap_or(scene.time.steps),
+        )?;
+        let eyes = match &self.cameras {
+            Some(p) => read_camera_eyes(p)?,
+            None => {
+                let p = cameras_path(&self.observations);
+                if p.exists() {
+                    read_camera_eyes(&p)?
+                } else {
+                    Vec::new()
+                }
+            }
+        };
+        Ok(Loaded {
+            scene,
+            section,
+            params,
+            kind,
+            observations,
+            eyes,
+        })
+    }
+}
