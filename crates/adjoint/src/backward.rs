@@ -12,10 +12,12 @@
 //!    `v_bar = dL/dv - (1 - theta) / theta v'_bar`, and `p_bar += dL/dp`.
 //!
 //! With `c_M = 1/(theta dt) + alpha_1`,
-//! `L = c_M lam^T M (u - u') + lam^T K(u) w + lam^T M v / theta + dt lam^T (M g + f_rot(u) + f_c(u, v))
-//!      - theta dt lam^T K_c(u) u'`,
+//! `L = c_M lam^T M (u - u') + lam^T K(u) w + lam^T M v / theta
+//!      + dt lam^T (M g + sum_k c_k F_k + f_rot(u) + f_c(u, v)) - theta dt lam^T K_c(u) u'`,
 //! `w = (alpha_2 - (1 - theta) dt) u - (alpha_2 + theta dt) u'`. Its parts:
 //! * mass, damping and gravity (sec. 5.5.3, 5.5.6): vector algebra;
+//! * the external force `sum_k c_k F_k` ([`cutfem::fem::ExternalForce`]): it enters `b` as
+//!   `dt f` like gravity, so `dL/dc_k = dt lam . F_k` (gravity: `dL/dg = dt sum_i m_i lam_i`);
 //! * `K(u) w` and the corotation force: through the rotations, cell by cell
 //!   ([`crate::local::cell_elastic_adjoint`], [`crate::local::polar_rotation_adjoint`], eq. 5.5.4),
 //!   and the Lame parameters (5.5.5); the Nitsche blocks are linear in `(lambda, mu)`;
@@ -52,6 +54,8 @@ pub struct PhysicalGradient {
     pub initial_velocity: Vec3<f64>,
     /// initial angular velocity
     pub initial_angular_velocity: Vec3<f64>,
+    /// the coefficients of the external force, `dJ/dc_k` (empty without one)
+    pub external: Vec<f64>,
     /// per active cell, the derivative with respect to its Young's modulus factor
     /// (`Model::stiffness_scale`; computed also when the model is homogeneous, where it is the
     /// score of a heterogeneous stiffness)
@@ -100,6 +104,17 @@ pub fn step_adjoint(
     grad.damping_mass += lam_m_du;
     grad.damping_stiffness += k_lam.ex().dot(u - u_next);
     grad.gravity = grad.gravity + s * dt;
+    if let Some(ext) = &model.external_force {
+        grad.external.resize(ext.len(), 0.0);
+        for (gk, field) in grad.external.iter_mut().zip(ext.basis.iter()) {
+            *gk += dt
+                * field
+                    .iter()
+                    .zip(lam.as_slice())
+                    .map(|(f, l)| f.dot(*l))
+                    .sum::<f64>();
+        }
+    }
 
     // elastic terms, cell by cell
     let grid = &sim.grid;

@@ -199,6 +199,19 @@ impl SurfaceCost {
         frame_points(&self.frames, frame)
     }
 
+    /// Points farther than `reach` from every triangle are charged `reach` (constant, no
+    /// gradient); the default is two cells. A diagnosis uses a larger reach, so that a model
+    /// that is far off still sees where the points are.
+    pub fn with_reach(mut self, reach: f64) -> Self {
+        self.outside_residual = reach.max(self.outside_residual);
+        self
+    }
+
+    /// The reference surface (marching cubes on the body's SDF).
+    pub fn surface(&self) -> &Surface {
+        &self.surface
+    }
+
     /// The deformed vertex positions for the dof displacement `u`.
     pub fn vertices(&self, u: &Matrix<Vec3<f64>>) -> Vec<Vec3<f64>> {
         let us = u.as_slice();
@@ -217,7 +230,8 @@ impl SurfaceCost {
         if points.is_empty() {
             return Vec::new();
         }
-        let inv = 1.0 / self.h;
+        // bins of half the reach: the 5x5x5 bins searched around a point cover it
+        let inv = 1.0 / self.h.max(0.5 * self.outside_residual);
         let bin = |p: Vec3<f64>| p.to_array().map(|v| (v * inv).floor() as i64);
         let faces = &self.surface.mesh.faces;
         let mut hash: HashMap<[i64; 3], Vec<u32>> = HashMap::new();

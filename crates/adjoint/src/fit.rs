@@ -26,11 +26,27 @@ pub fn point_cloud_cost(
     ))
 }
 
+/// The forward model of a scene on its grid: [`Scene::to_model`] (the built-in effects) plus
+/// what every model-level effect the scene switches on adds
+/// ([`crate::diagnosis::effects::Effect::apply_to_model`], e.g. `wind`'s external force), for
+/// the effects of [`crate::diagnosis::effects::extended_catalogue`].
+pub fn scene_model(scene: &Scene, grid: &Grid) -> Result<Model, String> {
+    let mut model = scene.to_model();
+    for e in crate::diagnosis::effects::extended_catalogue() {
+        if scene.effect_on(e.name()) {
+            e.apply_to_model(scene, grid, &mut model)
+                .map_err(|why| format!("{}: {why}", e.name()))?;
+        }
+    }
+    Ok(model)
+}
+
 /// The simulation of a scene (its grid, model and solver settings).
 pub fn scene_simulation(scene: &Scene) -> Result<Simulation, String> {
     let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
     let grid = Grid::new(sdf).map_err(|e| e.to_string())?;
-    let mut sim = Simulation::new(grid, scene.to_model()).map_err(|e| e.to_string())?;
+    let model = scene_model(scene, &grid)?;
+    let mut sim = Simulation::new(grid, model).map_err(|e| e.to_string())?;
     sim.solver.cg.tolerance = scene.numerics.cg_tolerance;
     sim.solver.cg.max_iterations = scene.numerics.cg_max_iterations;
     Ok(sim)
@@ -113,6 +129,47 @@ pub fn read_camera_eyes(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String>
     Ok(eyes)
 }
 
+/// Reads the cameras of a camera file with their intrinsics (`eye`, `target`, `up`, `fov_y`,
+/// `width`, `height`; index = camera id).
+pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera>, String> {
+    let eyes = read_camera_eyes(path)?;
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let cams = v["cameras"].as_array().map(Vec::as_slice).unwrap_or(&[]);
+    let mut out = Vec::with_capacity(eyes.len());
+    for (i, eye) in eyes.iter().enumerate() {
+        let c = cams
+            .iter()
+            .find(|c| c["id"].as_u64() == Some(i as u64))
+            .or_else(|| cams.get(i))
+            .ok_or_else(|| format!("{}: no camera {i}", path.display()))?;
+        let v3 = |key: &str| -> Option<[f64; 3]> {
+            let a = c[key].as_array()?;
+            let a: Vec<f64> = a.iter().map(|x| x.as_f64()).collect::<Option<_>>()?;
+            (a.len() == 3).then(|| [a[0], a[1], a[2]])
+        };
+        let bad = |key: &str| format!("{}: cameras[{i}].{key}: missing or invalid", path.display());
+        out.push(crate::observe::Camera {
+            eye: *eye,
+            target: v3("target").ok_or_else(|| bad("target"))?,
+            up: v3("up").unwrap_or([0.0, 1.0, 0.0]),
+            fov_y: c["fov_y"]
+                .as_f64()
+                .filter(|f| *f > 0.0 && *f < std::f64::consts::PI)
+                .ok_or_else(|| bad("fov_y"))?,
+            width: c["width"]
+                .as_u64()
+                .filter(|w| *w > 0)
+                .ok_or_else(|| bad("width"))? as usize,
+            height: c["height"]
+                .as_u64()
+                .filter(|w| *w > 0)
+                .ok_or_else(|| bad("height"))? as usize,
+        });
+    }
+    Ok(out)
+}
+
 /// The point-cloud reconstruction problem of a scene: its simulation, `steps` steps (default:
 /// the scene's), the parameters and the observations.
 pub fn scene_problem(
@@ -123,6 +180,22 @@ pub fn scene_problem(
     steps: Option<usize>,
     kind: CostKind,
     eyes: &[[f64; 3]],
+) -> Result<Problem, String> {
+    scene_problem_reach(scene, observations, params, robust, steps, kind, eyes, None)
+}
+
+/// [`scene_problem`] whose surface cost charges points farther than `reach` (default: two
+/// cells) from the surface a constant ([`crate::cost_mesh::SurfaceCost::with_reach`]).
+#[allow(clippy::too_many_arguments)]
+pub fn scene_problem_reach(
+    scene: &Scene,
+    observations: &Observations,
+    params: ParamSet,
+    robust: Robust,
+    steps: Option<usize>,
+    kind: CostKind,
+    eyes: &[[f64; 3]],
+    reach: Option<f64>,
 ) -> Result<Problem, String> {
     let sim = scene_simulation(scene)?;
     let mut params = params;
@@ -135,11 +208,14 @@ pub fn scene_problem(
         params.field = Some(crate::params::FieldBasis::new(&sim.grid, cells)?.into());
     }
     let cost: Box<dyn crate::cost::Cost> = match kind {
-        CostKind::Surface => Box::new(crate::cost_mesh::SurfaceCost::new(
-            &sim.grid,
-            observed_frames(observations, eyes),
-            robust,
-        )?),
+        CostKind::Surface => {
+            let cost =
+                crate::cost_mesh::SurfaceCost::new(&sim.grid, observed_frames(observations, eyes), robust)?;
+            Box::new(match reach {
+                Some(r) => cost.with_reach(r),
+                None => cost,
+            })
+        }
         CostKind::LevelSet => Box::new(point_cloud_cost(&sim.grid, observations, robust)?),
     };
     let steps = steps.unwrap_or(scene.time.steps);
@@ -290,8 +366,26 @@ pub fn get_physical(model: &Model, label: &str) -> Option<f64> {
         ("initial_angular_velocity", c) => comp(model.initial_angular_velocity, c),
         ("ground.normal", c) => comp(model.ground.as_ref()?.normal, c),
         ("ground", "height") => Some(model.ground.as_ref()?.height),
-        _ => None,
+        _ => {
+            let (e, k) = external_index(model, label)?;
+            Some(e.coefficients[k])
+        }
     }
+}
+
+/// The external force of `model` and the index of its coefficient labelled `label` (its label,
+/// e.g. `wind.x`, or `external_force[k]`).
+fn external_index<'m>(model: &'m Model, label: &str) -> Option<(&'m cutfem::fem::ExternalForce, usize)> {
+    let e = model.external_force.as_ref()?;
+    let k = e.labels.iter().position(|l| l == label).or_else(|| {
+        let k: usize = label
+            .strip_prefix("external_force[")?
+            .strip_suffix(']')?
+            .parse()
+            .ok()?;
+        (k < e.len()).then_some(k)
+    })?;
+    Some((e, k))
 }
 
 /// Writes a physical parameter component by its label; false when the label is unknown.
@@ -326,7 +420,10 @@ pub fn set_physical(model: &mut Model, label: &str, value: f64) -> bool {
             Some(g) => g.height = value,
             None => return false,
         },
-        _ => return false,
+        _ => match external_index(model, label).map(|(_, k)| k) {
+            Some(k) => model.external_force.as_mut().expect("found").coefficients[k] = value,
+            None => return false,
+        },
     }
     true
 }

@@ -20,11 +20,14 @@
 //! * [`optim`]: Barzilai-Borwein gradient descent, L-BFGS, Levenberg-Marquardt, all
 //!   tolerant of diverging evaluations;
 //! * [`observe`] and [`observations`]: virtual RGB-D cameras and the observation CSV;
-//! * [`fit`]: a scene's reconstruction problem, the optimizer objective, `gradcheck`.
+//! * [`fit`]: a scene's reconstruction problem, the optimizer objective, `gradcheck`;
+//! * [`diagnosis`]: the effects as first-class parts of the model; where a fitted model fails
+//!   and which effect is missing (score tests, short refits, BIC).
 
 pub mod backward;
 pub mod cost;
 pub mod cost_mesh;
+pub mod diagnosis;
 pub mod fit;
 pub mod local;
 pub mod observations;

@@ -7,7 +7,9 @@
 //! `nu = sigmoid(x) / 2`, so it stays inside `(0, 0.5)`; gravity and velocities are linear. The
 //! ground plane `{n . x >= height}` is fitted as two tilt angles and its height:
 //! `n = (-sin a_z cos a_x, cos a_z cos a_x, sin a_x)` (the `y` axis tilted about `x`, then `z`),
-//! regular at the horizontal plane. Gradients are chained from the physical ones
+//! regular at the horizontal plane. The coefficients `c_k` of a model's external force
+//! `f = sum_k c_k F_k` ([`cutfem::fem::ExternalForce`], e.g. the `wind` effect's traction) are
+//! linear coordinates, one per basis field. Gradients are chained from the physical ones
 //! ([`crate::backward::PhysicalGradient`]) with the Lame derivatives (eq. 5.5.5):
 //! `dlambda/dE = nu/((1+nu)(1-2nu))`, `dmu/dE = 1/(2(1+nu))`,
 //! `dlambda/dnu = E(1+2nu^2)/((1+nu)(1-2nu))^2`, `dmu/dnu = -E/(2(1+nu)^2)`.
@@ -17,6 +19,9 @@ use cutfem::fem::Model;
 use gpumat::Vec3;
 use std::fmt;
 use std::str::FromStr;
+
+mod field;
+pub use field::FieldBasis;
 
 /// Smallest starting value of a damping coefficient fitted in log space (a coefficient of
 /// exactly 0 has no logarithm).
@@ -45,10 +50,20 @@ pub enum Param {
     InitialAngularVelocity,
     /// log factors of Young's modulus on the nodes of a coarse trilinear grid
     StiffnessField,
+    /// the coefficients of the model's external force (linear), as many as its basis fields:
+    /// the count is taken from the model by [`ParamSet::resolve`] (0 until then, see
+    /// [`Param::EXTERNAL_FORCE`])
+    ExternalForce(usize),
+}
+
+impl Param {
+    /// The external force's coefficients before their count is known (what parsing
+    /// `external_force` and the effects' [`crate::diagnosis::effects::Effect::params`] give).
+    pub const EXTERNAL_FORCE: Param = Param::ExternalForce(0);
 }
 
 /// The vocabulary, in the order of [`Param`].
-pub const ALL: [Param; 10] = [
+pub const ALL: [Param; 11] = [
     Param::Young,
     Param::Poisson,
     Param::Density,
@@ -59,6 +74,7 @@ pub const ALL: [Param; 10] = [
     Param::InitialVelocity,
     Param::InitialAngularVelocity,
     Param::StiffnessField,
+    Param::EXTERNAL_FORCE,
 ];
 
 impl Param {
@@ -75,9 +91,11 @@ impl Param {
             Param::InitialVelocity => "initial_velocity",
             Param::InitialAngularVelocity => "initial_angular_velocity",
             Param::StiffnessField => "stiffness_field",
+            Param::ExternalForce(_) => "external_force",
         }
     }
-    /// The names of its components.
+    /// The names of its components (the external force's: `external_force[k]`; its reports use
+    /// the model's labels, e.g. `wind.x`, see [`ParamSet::values`]).
     pub fn components(self) -> Vec<String> {
         let xyz = |p: &str| ["x", "y", "z"].iter().map(|c| format!("{p}.{c}")).collect();
         match self {
@@ -87,6 +105,7 @@ impl Param {
                 "ground.angle_z".into(),
                 "ground.height".into(),
             ],
+            Param::ExternalForce(n) => (0..n).map(|k| format!("external_force[{k}]")).collect(),
             _ => vec![self.name().into()],
         }
     }
@@ -122,121 +141,6 @@ pub fn ground_normal(ax: f64, az: f64) -> (Vec3<f64>, Vec3<f64>, Vec3<f64>) {
 pub fn ground_angles(n: Vec3<f64>) -> (f64, f64) {
     let [x, y, z] = n.to_array();
     (z.clamp(-1.0, 1.0).asin(), (-x).atan2(y))
-}
-
-/// The coarse trilinear basis of the `stiffness_field` parameter: `nodes` = `(cells+1)^3`
-/// coefficients `c_k` on a grid spanning the active cells' centers, and per active cell the
-/// trilinear weights of its center. The cell factors are `s_e = exp(sum_k w_ek c_k)`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FieldBasis {
-    /// coarse cells per axis
-    pub cells: [usize; 3],
-    /// lower corner of the coarse grid
-    pub lo: [f64; 3],
-    /// upper corner
-    pub hi: [f64; 3],
-    /// per active cell: `(coefficient, weight)` of the 8 coarse nodes around its center
-    pub weights: Vec<[(u32, f64); 8]>,
-}
-
-impl FieldBasis {
-    /// The basis with `cells` coarse cells per axis over `grid`'s active cells.
-    pub fn new(grid: &cutfem::fem::Grid, cells: [usize; 3]) -> Result<Self, String> {
-        if cells.iter().any(|&c| c == 0 || c > 64) {
-            return Err(format!(
-                "model.stiffness_field.cells: each must lie in 1..=64, got {cells:?}"
-            ));
-        }
-        let h = grid.h();
-        let centers: Vec<[f64; 3]> = grid
-            .cells
-            .iter()
-            .map(|c| (grid.cell_origin(c) + Vec3::splat(0.5 * h)).to_array())
-            .collect();
-        if centers.is_empty() {
-            return Err("model.stiffness_field: the body has no active cells".into());
-        }
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for c in &centers {
-            for d in 0..3 {
-                lo[d] = lo[d].min(c[d]);
-                hi[d] = hi[d].max(c[d]);
-            }
-        }
-        let (nx, ny) = (cells[0] + 1, cells[1] + 1);
-        let weights = centers
-            .iter()
-            .map(|c| {
-                let mut idx = [0usize; 3];
-                let mut f = [0.0; 3];
-                for d in 0..3 {
-                    let span = (hi[d] - lo[d]).max(1e-12);
-                    let t = ((c[d] - lo[d]) / span * cells[d] as f64).clamp(0.0, cells[d] as f64);
-                    let i = (t.floor() as usize).min(cells[d] - 1);
-                    idx[d] = i;
-                    f[d] = t - i as f64;
-                }
-                std::array::from_fn(|k| {
-                    let b = [k & 1, (k >> 1) & 1, k >> 2];
-                    let node = (idx[0] + b[0]) + nx * ((idx[1] + b[1]) + ny * (idx[2] + b[2]));
-                    let w: f64 = (0..3)
-                        .map(|d| if b[d] == 1 { f[d] } else { 1.0 - f[d] })
-                        .product();
-                    (node as u32, w)
-                })
-            })
-            .collect();
-        Ok(Self {
-            cells,
-            lo,
-            hi,
-            weights,
-        })
-    }
-
-    /// Number of coefficients.
-    pub fn len(&self) -> usize {
-        self.cells.iter().map(|c| c + 1).product()
-    }
-    /// Never empty.
-    pub fn is_empty(&self) -> bool {
-        false
-    }
-
-    /// The coefficient labels `stiffness_field[i,j,k]`.
-    pub fn labels(&self) -> Vec<String> {
-        let [nx, ny, nz] = self.cells.map(|c| c + 1);
-        let mut out = Vec::with_capacity(nx * ny * nz);
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    out.push(format!("stiffness_field[{i},{j},{k}]"));
-                }
-            }
-        }
-        out
-    }
-
-    /// The cell factors `s_e = exp(sum_k w_ek c_k)` of coefficients `c`.
-    pub fn scales(&self, c: &[f64]) -> Vec<f64> {
-        self.weights
-            .iter()
-            .map(|w| w.iter().map(|&(k, wk)| wk * c[k as usize]).sum::<f64>().exp())
-            .collect()
-    }
-
-    /// The gradient with respect to the coefficients of a function with cell-factor gradient
-    /// `g` at cell factors `s`.
-    pub fn chain(&self, s: &[f64], g: &[f64]) -> Vec<f64> {
-        let mut out = vec![0.0; self.len()];
-        for ((w, &se), &ge) in self.weights.iter().zip(s).zip(g) {
-            for &(k, wk) in w {
-                out[k as usize] += ge * se * wk;
-            }
-        }
-        out
-    }
 }
 
 /// An ordered set of fitted parameters.
@@ -287,8 +191,37 @@ impl ParamSet {
         self.params.is_empty()
     }
 
+    /// Takes the number of external-force coefficients from `model` (a parsed set does not
+    /// know it; [`crate::problem::Problem::new`] calls this).
+    pub fn resolve(&mut self, model: &Model) {
+        let k = model.external_force.as_ref().map_or(0, |e| e.len());
+        for p in &mut self.params {
+            if let Param::ExternalForce(n) = p {
+                *n = k;
+            }
+        }
+    }
+
     /// Checks that the model has what the parameters need (e.g. a ground plane).
     pub fn check(&self, model: &Model) -> Result<(), String> {
+        for p in &self.params {
+            if let Param::ExternalForce(n) = *p {
+                match &model.external_force {
+                    None => {
+                        return Err("fitting `external_force` needs an effect that adds one (e.g. `wind` \
+                                    in [model].effects with a [wind] section)"
+                            .into())
+                    }
+                    Some(e) if e.len() != n => {
+                        return Err(format!(
+                            "external_force: {n} components for the model's {} coefficients (call ParamSet::resolve)",
+                            e.len()
+                        ))
+                    }
+                    _ => {}
+                }
+            }
+        }
         if self.params.contains(&Param::StiffnessField) && self.field.is_none() {
             return Err(
                 "fitting `stiffness_field` needs its basis ([model].stiffness_field = { cells = [...] })"
@@ -324,6 +257,7 @@ impl ParamSet {
                 Param::InitialAngularVelocity => x.extend(model.initial_angular_velocity.to_array()),
                 // fits start from the homogeneous material (all factors 1)
                 Param::StiffnessField => x.extend(vec![0.0; self.field.as_ref().expect("checked").len()]),
+                Param::ExternalForce(_) => x.extend(external(model).coefficients.iter().copied()),
             }
         }
         x
@@ -356,6 +290,11 @@ impl ParamSet {
                 Param::StiffnessField => {
                     let f = self.field.as_ref().expect("checked");
                     model.stiffness_scale = Some(f.scales(take(f.len())).into());
+                }
+                Param::ExternalForce(_) => {
+                    let e = model.external_force.as_mut().expect("checked");
+                    let n = e.len();
+                    e.coefficients.copy_from_slice(take(n));
                 }
             }
         }
@@ -404,6 +343,10 @@ impl ParamSet {
                         if s.is_empty() { 1.0 } else { hi },
                     ));
                 }
+                Param::ExternalForce(_) => {
+                    let e = external(model);
+                    out.extend(e.labels.iter().cloned().zip(e.coefficients.iter().copied()));
+                }
             }
         }
         out
@@ -442,6 +385,7 @@ impl ParamSet {
                     };
                     out.extend(f.chain(s, &g.cell_scale));
                 }
+                Param::ExternalForce(_) => out.extend(external_gradient(model, g)),
             }
         }
         out
@@ -465,9 +409,59 @@ impl ParamSet {
                     out.extend([1.0; 3])
                 }
                 Param::StiffnessField => out.extend(vec![1.0; self.field.as_ref().map_or(0, |f| f.len())]),
+                Param::ExternalForce(_) => out.extend(vec![1.0; external(model).len()]),
             }
         }
         out
+    }
+
+    /// Per component of `x`, true when it is the logarithm of a positive quantity (Young's
+    /// modulus, density, damping; the stiffness field's log factors are not: they are 0 at the
+    /// homogeneous material).
+    pub fn log_coordinates(&self) -> Vec<bool> {
+        let mut out = Vec::new();
+        for p in &self.params {
+            match p {
+                Param::Young | Param::Density | Param::DampingMass | Param::DampingStiffness => {
+                    out.push(true)
+                }
+                _ => out.extend(vec![false; self.component_count(*p)]),
+            }
+        }
+        out
+    }
+
+    /// A plausible box for the coordinates of a fit starting at `x0`: Young's modulus and the
+    /// density within a factor 100 of the start, the Poisson ratio in `[0.01, 0.49]`, damping
+    /// coefficients in `[1e-6, 1e4]`, the stiffness field's factors within `[1/100, 100]`;
+    /// the rest unbounded.
+    pub fn bounds(&self, x0: &[f64]) -> Vec<(f64, f64)> {
+        let logit = |nu: f64| (2.0 * nu / (1.0 - 2.0 * nu)).ln();
+        let mut out = Vec::new();
+        let mut k = 0;
+        for p in &self.params {
+            let n = self.component_count(*p);
+            for _ in 0..n {
+                let x = x0.get(k).copied().unwrap_or(0.0);
+                out.push(match p {
+                    Param::Young | Param::Density => (x - 100f64.ln(), x + 100f64.ln()),
+                    Param::Poisson => (logit(0.01), logit(0.49)),
+                    Param::DampingMass | Param::DampingStiffness => (1e-6f64.ln(), 1e4f64.ln()),
+                    Param::StiffnessField => (-100f64.ln(), 100f64.ln()),
+                    _ => (f64::NEG_INFINITY, f64::INFINITY),
+                });
+                k += 1;
+            }
+        }
+        out
+    }
+
+    fn component_count(&self, p: Param) -> usize {
+        match (p, &self.field) {
+            (Param::StiffnessField, Some(f)) => f.len(),
+            (Param::StiffnessField, None) => 0,
+            _ => p.components().len(),
+        }
     }
 
     /// The gradient with respect to the physical values of [`ParamSet::values`] (for reports
@@ -508,6 +502,13 @@ impl ParamSet {
                     .chain(model, g);
                     out.extend(labels.into_iter().zip(gx));
                 }
+                Param::ExternalForce(_) => out.extend(
+                    external(model)
+                        .labels
+                        .iter()
+                        .cloned()
+                        .zip(external_gradient(model, g)),
+                ),
             }
         }
         out
@@ -522,6 +523,19 @@ pub fn young_poisson_gradient(model: &Model, g: &PhysicalGradient) -> (f64, f64)
     let dnu = g.lambda * e * (1.0 + 2.0 * nu * nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)).powi(2)
         - g.mu * e / (2.0 * (1.0 + nu) * (1.0 + nu));
     (de, dnu)
+}
+
+/// The model's external force (present: [`ParamSet::check`]).
+fn external(model: &Model) -> &cutfem::fem::ExternalForce {
+    model.external_force.as_ref().expect("checked")
+}
+
+/// `dJ/dc_k` of the model's external force (zeros when no step was taken).
+fn external_gradient(model: &Model, g: &PhysicalGradient) -> Vec<f64> {
+    let n = external(model).len();
+    (0..n)
+        .map(|k| g.external.get(k).copied().unwrap_or(0.0))
+        .collect()
 }
 
 fn v3(s: &[f64]) -> Vec3<f64> {

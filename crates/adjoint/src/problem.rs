@@ -109,7 +109,8 @@ struct Trajectory {
 
 impl Problem {
     /// Sets up a problem. Errors when an observed frame lies beyond `steps` or a parameter
-    /// needs an effect the model lacks.
+    /// needs an effect the model lacks. The external force's coefficient count is taken from
+    /// the model ([`ParamSet::resolve`]).
     pub fn new(
         sim: Simulation,
         params: ParamSet,
@@ -117,6 +118,8 @@ impl Problem {
         steps: usize,
     ) -> Result<Self, ProblemError> {
         let base = sim.model.clone();
+        let mut params = params;
+        params.resolve(&base);
         params.check(&base).map_err(ProblemError::Invalid)?;
         if let Some(&last) = cost.frames().last() {
             if last > steps {

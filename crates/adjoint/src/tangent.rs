@@ -35,16 +35,33 @@ impl Problem {
     /// Gauss-Newton contributions: returns `H`.
     pub fn gauss_newton_matrix(&mut self, x: &[f64]) -> Result<Vec<f64>, ProblemError> {
         let n = x.len();
+        let dirs: Vec<Vec<f64>> = (0..n)
+            .map(|k| {
+                let mut d = vec![0.0; n];
+                d[k] = 1.0;
+                d
+            })
+            .collect();
+        self.gauss_newton_directions(x, &dirs)
+    }
+
+    /// The Gauss-Newton matrix in the directions `dirs` (`D^T H D`, `m x m` row-major for `m`
+    /// directions): one tangent-linear pass per direction instead of one per coordinate.
+    pub fn gauss_newton_directions(
+        &mut self,
+        x: &[f64],
+        dirs: &[Vec<f64>],
+    ) -> Result<Vec<f64>, ProblemError> {
+        let n = dirs.len();
         let model = self.model_at(x);
         let dofs = self.sim.grid.dofs();
         let frames = self.cost.frames();
         let (dt, theta) = (model.dt, model.theta);
-        let models: Vec<(Model, Model)> = (0..n)
-            .map(|k| {
-                let mut xp = x.to_vec();
-                xp[k] += EPS;
-                let mut xm = x.to_vec();
-                xm[k] -= EPS;
+        let models: Vec<(Model, Model)> = dirs
+            .iter()
+            .map(|d| {
+                let xp: Vec<f64> = x.iter().zip(d).map(|(a, b)| a + EPS * b).collect();
+                let xm: Vec<f64> = x.iter().zip(d).map(|(a, b)| a - EPS * b).collect();
                 (self.model_at(&xp), self.model_at(&xm))
             })
             .collect();

@@ -10,6 +10,7 @@ pub mod problems;
 pub mod report;
 pub mod stream;
 pub mod table_adjoint;
+pub mod table_diagnose;
 pub mod table_lincomb;
 pub mod table_sparse;
 pub mod thesis;

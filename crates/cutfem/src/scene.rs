@@ -3,8 +3,13 @@
 //!
 //! Unknown keys are errors (a typo must not silently fall back to a default). Relative paths
 //! are relative to the scene file. Effects: `gravity`, `damping`, `ground`, `corotation`,
-//! `stiffness_field`, `initial_velocity`; with `[model]` absent, every effect whose section is
-//! present is on, plus corotation.
+//! `stiffness_field`, `initial_velocity`, `wind`; with `[model]` absent, every effect whose
+//! section is present is on, plus corotation.
+//!
+//! `wind` (`[wind] traction = [x, y, z]`, a uniform force per unit surface area) is parsed here
+//! but built by the adjoint layer (`adjoint::diagnosis::effects::Wind`, through
+//! `adjoint::fit::scene_model`): [`Scene::to_model`] alone leaves it out. See
+//! `docs/effects-tutorial.md`.
 
 use crate::error::Error;
 use crate::fem::{Aabb, Ground, Model};
@@ -13,13 +18,14 @@ use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
 /// The effect vocabulary.
-pub const EFFECTS: [&str; 6] = [
+pub const EFFECTS: [&str; 7] = [
     "gravity",
     "damping",
     "ground",
     "corotation",
     "stiffness_field",
     "initial_velocity",
+    "wind",
 ];
 
 /// `[body]`
@@ -74,6 +80,15 @@ pub struct DampingSection {
 pub struct GravitySection {
     /// acceleration vector
     pub acceleration: [f64; 3],
+}
+
+/// `[wind]`: a uniform traction on the body's surface (the tutorial effect of
+/// `docs/effects-tutorial.md`; built by the adjoint layer).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct WindSection {
+    /// force per unit surface area (world units)
+    pub traction: [f64; 3],
 }
 
 /// `[ground]`
@@ -286,6 +301,8 @@ pub struct Scene {
     pub dirichlet: Vec<DirichletSection>,
     /// initial motion
     pub initial: Option<InitialSection>,
+    /// uniform surface traction
+    pub wind: Option<WindSection>,
     /// time stepping
     #[serde(default)]
     pub time: TimeSection,
@@ -359,6 +376,7 @@ impl Scene {
                     "ground" => self.ground.is_some(),
                     "initial_velocity" => self.initial.is_some(),
                     "stiffness_field" => m.stiffness_field.is_some(),
+                    "wind" => self.wind.is_some(),
                     _ => true,
                 };
                 if !section {
@@ -379,6 +397,11 @@ impl Scene {
                 }
             }
         }
+        if let Some(w) = &self.wind {
+            if !w.traction.iter().all(|t| t.is_finite()) {
+                return Err(Error::format(path, "wind.traction: must be finite"));
+            }
+        }
         self.to_model()
             .validate()
             .map_err(|e| Error::format(path, e.to_string()))
@@ -394,6 +417,7 @@ impl Scene {
                 "damping" => self.damping.is_some(),
                 "ground" => self.ground.is_some(),
                 "initial_velocity" => self.initial.is_some(),
+                "wind" => self.wind.is_some(),
                 _ => false,
             },
         }
@@ -499,9 +523,15 @@ impl Scene {
             pad(&grid, PADDING_CELLS).map_err(|e| Error::format(&path, e))?
         } else if let Some(p) = &b.mesh {
             let path = self.resolve(p);
+            if let Some(hit) = mesh_cache_get(&path, resolution) {
+                return Ok(hit);
+            }
             let mesh = crate::TriMesh::load(&path)?;
-            mesh.to_sdf(resolution, PADDING_CELLS)
-                .map_err(|e| Error::format(&path, e.to_string()))?
+            let sdf = mesh
+                .to_sdf(resolution, PADDING_CELLS)
+                .map_err(|e| Error::format(&path, e.to_string()))?;
+            mesh_cache_put(&path, resolution, &sdf);
+            sdf
         } else if let Some(shape) = &b.shape {
             shape
                 .validate()
@@ -517,6 +547,40 @@ impl Scene {
         };
         Ok(sdf)
     }
+}
+
+/// The SDFs of meshes built in this process, by file (path, size, modification time) and
+/// resolution: a fit or a diagnosis builds the same scene's body many times, and the
+/// winding-number SDF of a mesh costs seconds.
+type MeshKey = (PathBuf, u64, Option<std::time::SystemTime>, u64);
+static MESH_SDFS: std::sync::Mutex<Vec<(MeshKey, crate::SdfGrid)>> = std::sync::Mutex::new(Vec::new());
+/// Meshes kept.
+const MESH_CACHE: usize = 4;
+
+fn mesh_key(path: &Path, resolution: f64) -> Option<MeshKey> {
+    let meta = std::fs::metadata(path).ok()?;
+    Some((
+        path.to_path_buf(),
+        meta.len(),
+        meta.modified().ok(),
+        resolution.to_bits(),
+    ))
+}
+
+fn mesh_cache_get(path: &Path, resolution: f64) -> Option<crate::SdfGrid> {
+    let key = mesh_key(path, resolution)?;
+    let cache = MESH_SDFS.lock().ok()?;
+    cache.iter().find(|(k, _)| *k == key).map(|(_, s)| s.clone())
+}
+
+fn mesh_cache_put(path: &Path, resolution: f64, sdf: &crate::SdfGrid) {
+    let (Some(key), Ok(mut cache)) = (mesh_key(path, resolution), MESH_SDFS.lock()) else {
+        return;
+    };
+    if cache.len() >= MESH_CACHE {
+        cache.remove(0);
+    }
+    cache.push((key, sdf.clone()));
 }
 
 /// Adds `cells` layers of nodes around an SDF grid; the new values grow by the distance to

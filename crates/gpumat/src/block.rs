@@ -8,6 +8,18 @@
 use crate::scalar::{CastFrom, Real, Scalar, ScalarMul};
 use std::ops::{Add, Mul, Neg, Sub};
 
+/// `[[f(0, 0), f(0, 1), f(0, 2)], ..]`, row by row, as a plain array literal: it inlines
+/// reliably, where `std::array::from_fn` and `map` go through generic adapters that the
+/// optimizer does not always inline into large loops (same operations, same values).
+#[inline(always)]
+fn grid3<R>(mut f: impl FnMut(usize, usize) -> R) -> [[R; 3]; 3] {
+    [
+        [f(0, 0), f(0, 1), f(0, 2)],
+        [f(1, 0), f(1, 1), f(1, 2)],
+        [f(2, 0), f(2, 1), f(2, 2)],
+    ]
+}
+
 /// A 3-vector stored in four lanes (`w` = 0), 16-byte aligned.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C, align(16))]
@@ -105,7 +117,7 @@ impl<R: Real> Vec3<R> {
         let a = self.to_array();
         let b = o.to_array();
         Mat3 {
-            m: std::array::from_fn(|i| std::array::from_fn(|j| a[i] * b[j])),
+            m: grid3(|i, j| a[i] * b[j]),
         }
     }
 }
@@ -143,7 +155,7 @@ impl<R: Real> Mat3<R> {
     #[inline(always)]
     pub fn transpose(&self) -> Self {
         Self {
-            m: std::array::from_fn(|i| std::array::from_fn(|j| self.m[j][i])),
+            m: grid3(|i, j| self.m[j][i]),
         }
     }
     /// Determinant.
@@ -267,19 +279,19 @@ macro_rules! impl_block_scalars {
             #[inline(always)]
             fn from_lanes(mut f: impl FnMut(usize) -> $r) -> Self {
                 Self {
-                    m: std::array::from_fn(|i| std::array::from_fn(|j| f(3 * i + j))),
+                    m: grid3(|i, j| f(3 * i + j)),
                 }
             }
             #[inline(always)]
             fn map(self, f: impl Fn($r) -> $r) -> Self {
                 Self {
-                    m: self.m.map(|row| row.map(&f)),
+                    m: grid3(|i, j| f(self.m[i][j])),
                 }
             }
             #[inline(always)]
             fn zip(self, o: Self, f: impl Fn($r, $r) -> $r) -> Self {
                 Self {
-                    m: std::array::from_fn(|i| std::array::from_fn(|j| f(self.m[i][j], o.m[i][j]))),
+                    m: grid3(|i, j| f(self.m[i][j], o.m[i][j])),
                 }
             }
             #[inline(always)]
@@ -311,10 +323,8 @@ macro_rules! impl_block_scalars {
             #[inline(always)]
             fn smul(self, o: Self) -> Self {
                 Self {
-                    m: std::array::from_fn(|i| {
-                        std::array::from_fn(|j| {
-                            self.m[i][0] * o.m[0][j] + self.m[i][1] * o.m[1][j] + self.m[i][2] * o.m[2][j]
-                        })
+                    m: grid3(|i, j| {
+                        self.m[i][0] * o.m[0][j] + self.m[i][1] * o.m[1][j] + self.m[i][2] * o.m[2][j]
                     }),
                 }
             }
@@ -375,7 +385,7 @@ impl CastFrom<Mat3<f32>> for Mat3<f64> {
     #[inline(always)]
     fn cast_from(v: Mat3<f32>) -> Self {
         Mat3 {
-            m: v.m.map(|r| r.map(|x| x as f64)),
+            m: grid3(|i, j| v.m[i][j] as f64),
         }
     }
 }
@@ -383,7 +393,7 @@ impl CastFrom<Mat3<f64>> for Mat3<f32> {
     #[inline(always)]
     fn cast_from(v: Mat3<f64>) -> Self {
         Mat3 {
-            m: v.m.map(|r| r.map(|x| x as f32)),
+            m: grid3(|i, j| v.m[i][j] as f32),
         }
     }
 }
@@ -421,7 +431,7 @@ impl<R: Real> Add for Mat3<R> {
     #[inline(always)]
     fn add(self, o: Self) -> Self {
         Self {
-            m: std::array::from_fn(|i| std::array::from_fn(|j| self.m[i][j] + o.m[i][j])),
+            m: grid3(|i, j| self.m[i][j] + o.m[i][j]),
         }
     }
 }
@@ -430,7 +440,7 @@ impl<R: Real> Sub for Mat3<R> {
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Self {
-            m: std::array::from_fn(|i| std::array::from_fn(|j| self.m[i][j] - o.m[i][j])),
+            m: grid3(|i, j| self.m[i][j] - o.m[i][j]),
         }
     }
 }
@@ -439,7 +449,7 @@ impl<R: Real> Neg for Mat3<R> {
     #[inline(always)]
     fn neg(self) -> Self {
         Self {
-            m: self.m.map(|r| r.map(|x| -x)),
+            m: grid3(|i, j| -self.m[i][j]),
         }
     }
 }
@@ -448,7 +458,7 @@ impl<R: Real> Mul<R> for Mat3<R> {
     #[inline(always)]
     fn mul(self, s: R) -> Self {
         Self {
-            m: self.m.map(|r| r.map(|x| x * s)),
+            m: grid3(|i, j| self.m[i][j] * s),
         }
     }
 }
@@ -464,7 +474,7 @@ impl<R: Real> Mul for Mat3<R> {
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
         Self {
-            m: std::array::from_fn(|i| std::array::from_fn(|j| self.row(i).dot(o.col(j)))),
+            m: grid3(|i, j| self.row(i).dot(o.col(j))),
         }
     }
 }

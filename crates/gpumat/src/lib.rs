@@ -37,6 +37,7 @@ mod matrix;
 pub mod ops;
 mod product;
 mod scalar;
+pub mod simd;
 pub mod solve;
 pub mod sparse;
 pub mod stats;

@@ -4,7 +4,8 @@
 //! Every iteration is appended to `DIR/fit.log` (one JSON object per line) as soon as it
 //! completes, so an interrupted fit loses nothing; `--resume` continues from the log's last
 //! iteration. The report folder gets `fit.json` and PNG plots of the cost and the parameters per
-//! iteration and of the rms per frame before and after.
+//! iteration and of the rms per frame before and after. Every run is appended to the scene's
+//! history file (`SCENE.history.jsonl`, `adjoint::diagnosis::history`).
 
 use crate::problem_args::{Loaded, ProblemArgs};
 use crate::progress;
@@ -310,6 +311,19 @@ pub fn run(args: Args) -> Result<(), String> {
         "out": out,
         "files": files,
     });
+    // the scene's history of models (`diagnose` plots the rms over them)
+    let effects: Vec<String> = cutfem::scene::EFFECTS
+        .iter()
+        .filter(|e| scene.effect_on(e))
+        .map(|e| e.to_string())
+        .collect();
+    let hist = adjoint::diagnosis::history::history_path(&args.problem.scene);
+    adjoint::diagnosis::history::append(
+        &hist,
+        &adjoint::diagnosis::history::Entry::now("fit", effects, final_values.clone(), ev_final.rms()),
+    )?;
+    let mut summary = summary;
+    summary["history_file"] = json!(hist);
     let path = out.join("fit.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
         .map_err(|e| format!("{}: {e}", path.display()))?;

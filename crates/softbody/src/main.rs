@@ -3,6 +3,9 @@
 //! Thin by design: parse, call the library, print, draw. Every error becomes one line on
 //! stderr and a non-zero exit code; `--json` prints exactly one JSON object on stdout.
 
+mod demo;
+mod diagnose;
+mod diagnose_report;
 mod fit;
 mod fit_report;
 mod gradcheck;
@@ -37,6 +40,12 @@ enum Command {
     Fit(fit::Args),
     /// Adjoint gradient against central finite differences for every fitted parameter.
     Gradcheck(gradcheck::Args),
+    /// Fits the model as given, shows where it fails (residuals per frame, camera, surface
+    /// region, direction; pictures) and which physical effect is missing.
+    Diagnose(diagnose::Args),
+    /// The whole story on a built-in case with a hidden effect: observe, fit, diagnose, add
+    /// the missing effect, refit, watch the error fall.
+    Demo(demo::Args),
 }
 
 fn main() -> ExitCode {
@@ -53,6 +62,8 @@ fn main() -> ExitCode {
         Command::Observe(a) => observe::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Gradcheck(a) => gradcheck::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
+        Command::Demo(a) => demo::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

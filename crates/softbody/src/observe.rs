@@ -174,8 +174,10 @@ pub fn run(a: Args) -> Result<(), String> {
 
     let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
     let grid = Grid::new(sdf).map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    let mut sim =
-        Simulation::new(grid, scene.to_model()).map_err(|e| format!("{}: {e}", a.scene.display()))?;
+    // the scene's model with its model-level effects (e.g. `wind`)
+    let model =
+        adjoint::fit::scene_model(&scene, &grid).map_err(|e| format!("{}: {e}", a.scene.display()))?;
+    let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     sim.solver.cg.tolerance = scene.numerics.cg_tolerance;
     sim.solver.cg.max_iterations = scene.numerics.cg_max_iterations;
     let surface = extract_surface(&sim.grid.sdf);

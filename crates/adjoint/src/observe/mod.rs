@@ -252,3 +252,47 @@ pub(crate) fn normalize(a: [f64; 3]) -> [f64; 3] {
         a
     }
 }
+
+/// Simulates `scene` (its model, `steps` steps) and observes frames `1..=steps` with a rig of
+/// `rig` cameras around the body's reference bounding-box center and depth noise `sigma`:
+/// the observations and the cameras (as `softbody observe` writes them). `edit` may change the
+/// model before the run (e.g. a stiffness field a scene file cannot express).
+pub fn synthesize(
+    scene: &cutfem::scene::Scene,
+    rig: &RigParams,
+    sigma: f64,
+    steps: usize,
+    edit: impl FnOnce(&cutfem::fem::Grid, &mut cutfem::fem::Model),
+) -> Result<(Observations, Vec<Camera>), String> {
+    rig.validate()?;
+    if !(sigma.is_finite() && sigma >= 0.0) {
+        return Err(format!("noise must be non-negative, got {sigma}"));
+    }
+    let mut sim = crate::fit::scene_simulation(scene)?;
+    let mut model = sim.model.clone();
+    edit(&sim.grid, &mut model);
+    sim.reset(model).map_err(|e| e.to_string())?;
+    let surface = cutfem::surface::extract_surface(&sim.grid.sdf);
+    let (lo, hi) = surface
+        .mesh
+        .bounding_box()
+        .ok_or("the body has no surface to observe")?;
+    let target = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
+    let cameras = place_cameras(target, rig);
+    let mut obs = Observations::new();
+    for f in 1..=steps {
+        sim.step().map_err(|e| format!("step {f}: {e}"))?;
+        let grid = &sim.grid;
+        let u = &sim.u;
+        let mesh = surface.deformed(|node| {
+            let d = grid.node_dofs[node];
+            if d == cutfem::fem::grid::INACTIVE {
+                [0.0; 3]
+            } else {
+                u.get(d as usize, 0, 0).to_array()
+            }
+        });
+        record(&mut obs, f, &observe_mesh(&mesh, &cameras, sigma, rig.seed, f));
+    }
+    Ok((obs, cameras))
+}

@@ -13,7 +13,9 @@ use bench::machine::{self, Machine};
 use bench::peers::Peers;
 use bench::report::{col, markdown_table, Fmt};
 use bench::timing::Policy;
-use bench::{progress, stream, table_adjoint, table_cuboid, table_lincomb, table_sparse, thesis, Ctx};
+use bench::{
+    progress, stream, table_adjoint, table_cuboid, table_diagnose, table_lincomb, table_sparse, thesis, Ctx,
+};
 use clap::Parser;
 use serde::Serialize;
 use serde_json::{json, Value};
@@ -63,6 +65,8 @@ struct Tables {
     b6: Option<Vec<table_cuboid::CuboidRow>>,
     #[serde(rename = "5.2", skip_serializing_if = "Option::is_none")]
     t52: Option<Vec<table_adjoint::Row>>,
+    #[serde(rename = "D", skip_serializing_if = "Option::is_none")]
+    d: Option<Vec<table_diagnose::Row>>,
 }
 
 /// The JSON report: exactly this object is printed with `--json`.
@@ -197,6 +201,19 @@ fn targets(tables: &serde_json::Map<String, Value>) -> Value {
             find("B.4", "grid", last_grid, "per_iteration_speedup_vs_eigen"), 1.0,
             &format!("B.4 g={last_grid}: Eigen time per iteration / gpumat time per iteration")),
     });
+    let rows_d = || tables.get("D").and_then(|r| r.as_array()).into_iter().flatten();
+    for (key, case, what) in [
+        (
+            "diagnose_torus_seconds",
+            "diagnose:",
+            "D: diagnose on the swinging torus (30 steps), wall seconds",
+        ),
+        ("demo_seconds", "softbody demo", "D: softbody demo, wall seconds"),
+    ] {
+        if let Some(r) = rows_d().find(|r| r["case"].as_str().is_some_and(|c| c.starts_with(case))) {
+            all[key] = at_most(r["seconds"].clone(), r["goal_s"].as_f64().unwrap_or(0.0), what);
+        }
+    }
     if tables.contains_key("5.2") {
         all["adjoint_backward_over_forward"] = at_most(
             worst_ratio,
@@ -341,6 +358,9 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
             ));
         }
     }
+    if tables.contains_key("D") {
+        s.push_str(&table_diagnose::markdown(&rows("D")));
+    }
     if tables.contains_key("5.2") {
         s.push_str(&table_adjoint::markdown(&rows("5.2")));
     }
@@ -417,6 +437,7 @@ fn main() {
         Some((rows, notes)) => (Some(rows), notes),
         None => (None, Vec::new()),
     };
+    let d = wanted("D").then(|| table_diagnose::table(args.quick));
     let typed = Tables {
         b1,
         b2,
@@ -425,6 +446,7 @@ fn main() {
         b5,
         b6,
         t52,
+        d,
     };
     let stream_gbs = stream_runs.iter().copied().fold(0.0, f64::max);
     progress(&format!("STREAM triad samples {stream_runs:.1?} GB/s"));
@@ -449,6 +471,9 @@ fn main() {
     }
     if let Some(r) = &typed.t52 {
         tables.insert("5.2".into(), Value::Array(to_values(r)));
+    }
+    if let Some(r) = &typed.d {
+        tables.insert("D".into(), Value::Array(to_values(r)));
     }
 
     let mut notes = vec![

@@ -7,37 +7,41 @@
 //! of its element contributions, so there are no atomics, no races and the result does not
 //! depend on the thread count.
 //!
+//! A step's assembly is three sweeps: one over the cells ([`Assembler::rotations_and_cell_forces`]:
+//! rotation `R_e` and the eight corotation corner forces while the cell's blocks are at hand),
+//! one over the rows (the upper-triangle blocks and the force `f_r = m_r g + sum` of the
+//! corner forces of the node), then, after the ground forces, the Newmark pass
+//! ([`Assembler::newmark`]), which completes `K` (each lower block is the transpose of its
+//! mirror) while it writes `A` and `b`. Every pass works on fixed chunks of rows or cells,
+//! writes each value from exactly one task and sums in a fixed order, so the results are
+//! bit-identical whatever the number of threads. The hot loops are written once over
+//! [`gpumat::simd::Simd4`] and run in AVX2 registers where the CPU has them (same values).
+//!
 //! Element block (e, i, j): `R_e K_ij(e) R_e^T` (corotation, eq. 4.4.7/4.4.10) plus, for a
 //! Dirichlet cell, the Nitsche terms (eq. 4.4.16-4.4.17), added after the rotation as the
 //! thesis prescribes. The corotation force of corner `i` is
 //! `f_i -= sum_j R_e K_ij (R_e^T x_j - x_j)` (eq. 4.4.6/4.4.10); because `sum_j K_ij = 0`
 //! the corner positions may be taken relative to the cell.
 
-use super::element::{corner_offsets, StiffnessTables};
+mod cells;
+mod newmark;
+
+pub use cells::CellWork;
+pub(crate) use newmark::fill_newmark;
+
+use super::element::{lanes3, padded_transpose, rotate_add, PaddedBlock, StiffnessTables, OPPOSITE};
+pub use super::element::{rotate_block, ElementBlocks};
 use super::grid::Grid;
+use gpumat::simd::{dispatch, Kernel, Simd4};
 use gpumat::{Mat3, Matrix, SparseMatrix, SparsityPattern, Vec3};
 use rayon::prelude::*;
 use std::sync::Arc;
 
-/// `R B R^T` with plain loops (the hot spot of the corotated assembly).
-#[inline(always)]
-pub fn rotate_block(r: &Mat3<f64>, b: &Mat3<f64>) -> Mat3<f64> {
-    let (r, b) = (&r.m, &b.m);
-    // t = B R^T
-    let mut t = [[0.0f64; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            t[i][j] = b[i][0] * r[j][0] + b[i][1] * r[j][1] + b[i][2] * r[j][2];
-        }
-    }
-    let mut o = [[0.0f64; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            o[i][j] = r[i][0] * t[0][j] + r[i][1] * t[1][j] + r[i][2] * t[2][j];
-        }
-    }
-    Mat3 { m: o }
-}
+/// Rows per task of the parallel row passes. The chunking never changes a value: each entry,
+/// row and cell is computed by one task in a fixed order, whatever the number of threads.
+pub(crate) const ROW_CHUNK: usize = 64;
+/// Cells per task of the parallel cell pass.
+const CELL_CHUNK: usize = 64;
 
 /// The values of a sparse matrix shared by parallel tasks that write disjoint entries
 /// ([`Assembler::assemble_stiffness`]).
@@ -80,75 +84,6 @@ pub struct Material {
     pub eta: f64,
 }
 
-/// The unrotated element blocks `K_ij(e)` for one material: one shared set for all full
-/// cells (their weights are all `h^3/8`) and one set per distinct weight vector of the cut
-/// cells (cells cut alike, e.g. along a flat face, share theirs: bit-identical weights give
-/// bit-identical blocks, and a smaller table is less memory traffic in every assembly).
-/// Rebuilt only when the material changes.
-#[derive(Clone, Debug)]
-pub struct ElementBlocks {
-    /// Lame lambda the blocks were built for
-    pub lambda: f64,
-    /// Lame mu the blocks were built for
-    pub mu: f64,
-    full: Box<[[Mat3<f64>; 8]; 8]>,
-    /// per cell: index into `cut`, or `u32::MAX` for a full cell
-    cut_index: Vec<u32>,
-    cut: Vec<[[Mat3<f64>; 8]; 8]>,
-}
-
-impl ElementBlocks {
-    /// Builds the blocks of every cell of `grid` for `(lambda, mu)`.
-    pub fn new(tables: &StiffnessTables, grid: &Grid, lambda: f64, mu: f64) -> Self {
-        let w = [grid.h().powi(3) / 8.0; 8];
-        let block_set = |w: &[f64; 8]| -> [[Mat3<f64>; 8]; 8] {
-            std::array::from_fn(|i| std::array::from_fn(|j| tables.block(w, i, j, lambda, mu)))
-        };
-        let full = Box::new(block_set(&w));
-        // distinct weight vectors in order of first appearance (deterministic)
-        let mut cut_index = vec![u32::MAX; grid.cells.len()];
-        let mut seen: std::collections::HashMap<[u64; 8], u32> = std::collections::HashMap::new();
-        let mut weights: Vec<&[f64; 8]> = Vec::new();
-        for (e, c) in grid.cells.iter().enumerate() {
-            if !c.is_full() {
-                let v = &c.integrals.volume;
-                cut_index[e] = *seen.entry(v.map(f64::to_bits)).or_insert_with(|| {
-                    weights.push(v);
-                    (weights.len() - 1) as u32
-                });
-            }
-        }
-        let cut = weights.par_iter().map(|w| block_set(w)).collect();
-        Self {
-            lambda,
-            mu,
-            full,
-            cut_index,
-            cut,
-        }
-    }
-    /// Number of distinct cut-cell block sets stored.
-    pub fn cut_sets(&self) -> usize {
-        self.cut.len()
-    }
-    /// `K_ij(e)`.
-    #[inline(always)]
-    pub fn get(&self, e: usize, i: usize, j: usize) -> Mat3<f64> {
-        match self.cut_index[e] {
-            u32::MAX => self.full[i][j],
-            c => self.cut[c as usize][i][j],
-        }
-    }
-    /// All 64 blocks of cell `e`.
-    #[inline(always)]
-    pub fn cell(&self, e: usize) -> &[[Mat3<f64>; 8]; 8] {
-        match self.cut_index[e] {
-            u32::MAX => &self.full,
-            c => &self.cut[c as usize],
-        }
-    }
-}
-
 /// The pattern, gather maps and tables, built once per grid.
 #[derive(Clone, Debug)]
 pub struct Assembler {
@@ -157,10 +92,11 @@ pub struct Assembler {
     contrib_ptr: Vec<u32>,
     /// `(cell, 8 i + j)`
     contrib: Vec<(u32, u8)>,
-    /// entries on or above the diagonal (computed; the others are their transposes)
-    upper: Vec<u32>,
-    /// entries below the diagonal and their mirror entries above it: `(entry, mirror)`
-    lower: Vec<(u32, u32)>,
+    /// the diagonal entry of each row: the row's entries from it on are computed, the ones
+    /// before it (below the diagonal) are the transposes of their mirrors
+    diag: Vec<u32>,
+    /// the entry of `(c, r)` for each entry `(r, c)`
+    mirror: Vec<u32>,
     /// cells touching each dof: `node_cells[node_ptr[d]..node_ptr[d+1]]` as `(cell, corner)`
     node_ptr: Vec<u32>,
     node_cells: Vec<(u32, u8)>,
@@ -178,11 +114,18 @@ impl Assembler {
         });
         let pattern = SparsityPattern::from_entries(n, n, entries);
         // Gather map: count, then fill in cell order (deterministic order of summation).
+        // Opposite corners (`i ^ j = 7`) share no quadrature corner where both basis
+        // gradients are nonzero: their stiffness and Nitsche blocks are exactly zero and are
+        // left out (adding a zero block to a sum that starts at +0 never changes it).
         let mut count = vec![0u32; pattern.nnz() + 1];
         let mut slot = Vec::with_capacity(grid.cells.len() * 64);
         for c in &grid.cells {
             for i in 0..8 {
                 for j in 0..8 {
+                    if i ^ j == OPPOSITE {
+                        slot.push(u32::MAX);
+                        continue;
+                    }
                     let k = pattern
                         .find(c.dofs[i] as usize, c.dofs[j] as usize)
                         .expect("pattern holds every cell pair");
@@ -196,9 +139,9 @@ impl Assembler {
         }
         let contrib_ptr = count.clone();
         let mut next = count;
-        let mut contrib = vec![(0u32, 0u8); slot.len()];
+        let mut contrib = vec![(0u32, 0u8); contrib_ptr[pattern.nnz()] as usize];
         for (e, chunk) in slot.chunks(64).enumerate() {
-            for (ij, &k) in chunk.iter().enumerate() {
+            for (ij, &k) in chunk.iter().enumerate().filter(|(_, &k)| k != u32::MAX) {
                 contrib[next[k as usize] as usize] = (e as u32, ij as u8);
                 next[k as usize] += 1;
             }
@@ -221,26 +164,22 @@ impl Assembler {
                 nnext[d as usize] += 1;
             }
         }
-        // upper-triangle entries and the mirror map of the others
-        let mut upper = Vec::with_capacity(pattern.nnz() / 2 + n);
-        let mut lower = Vec::with_capacity(pattern.nnz() / 2);
+        // the diagonal of each row and the mirror of each entry
+        let mut diag = Vec::with_capacity(n);
+        let mut mirror = vec![0u32; pattern.nnz()];
         for r in 0..n {
+            diag.push(pattern.find(r, r).expect("every dof is in a cell") as u32);
             for kk in pattern.row_range(r) {
                 let c = pattern.col_idx()[kk] as usize;
-                if c >= r {
-                    upper.push(kk as u32);
-                } else {
-                    let mirror = pattern.find(c, r).expect("cell pairs give a symmetric pattern");
-                    lower.push((kk as u32, mirror as u32));
-                }
+                mirror[kk] = pattern.find(c, r).expect("cell pairs give a symmetric pattern") as u32;
             }
         }
         Self {
             pattern,
             contrib_ptr,
             contrib,
-            upper,
-            lower,
+            diag,
+            mirror,
             node_ptr,
             node_cells,
             tables: StiffnessTables::new(grid.h()),
@@ -277,103 +216,244 @@ impl Assembler {
         scale: Option<&[f64]>,
         k: &mut SparseMatrix<Mat3<f64>>,
     ) {
+        let rt: Vec<PaddedBlock> =
+            rotations.map_or_else(Vec::new, |r| r.par_iter().map(padded_transpose).collect());
+        let cells = Cells {
+            grid,
+            m,
+            blocks,
+            rotations: rotations.map(|r| (r, &rt[..])),
+            dirichlet,
+            scale,
+        };
+        self.assemble_values(&cells, k, None);
+    }
+
+    /// A step's stiffness values and forces in one row sweep: the blocks of `k` on and above
+    /// the diagonal (as [`Assembler::assemble_stiffness`]) and `f_r = m_r g + sum` of the
+    /// corner forces of node `r` (its cells in [`Assembler::cells_of`] order). The blocks
+    /// below the diagonal are left to the step's Newmark pass ([`Assembler::newmark`]), which
+    /// mirrors them as it reads them. `corotation`: the rotations and the cell data of
+    /// [`Assembler::rotations_and_cell_forces`] (`None`: no corotation, gravity only).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn assemble_upper_with_forces(
+        &self,
+        grid: &Grid,
+        m: &Material,
+        blocks: &ElementBlocks,
+        corotation: Option<(&[Mat3<f64>], &CellWork)>,
+        dirichlet: &[bool],
+        scale: Option<&[f64]>,
+        k: &mut SparseMatrix<Mat3<f64>>,
+        mass: &Matrix<f64>,
+        gravity: Vec3<f64>,
+        f: &mut Matrix<Vec3<f64>>,
+    ) {
+        let cells = Cells {
+            grid,
+            m,
+            blocks,
+            rotations: corotation.map(|(r, w)| (r, &w.rt[..])),
+            dirichlet,
+            scale,
+        };
+        let forces = Forces {
+            mass: mass.as_slice(),
+            gravity,
+            cell_forces: corotation.map(|(_, w)| &w.forces[..]),
+        };
+        self.assemble_values(&cells, k, Some((forces, f.as_mut_slice())));
+    }
+
+    /// The upper blocks (and the forces, when given; else the lower blocks too, by mirroring).
+    fn assemble_values(
+        &self,
+        c: &Cells<'_>,
+        k: &mut SparseMatrix<Mat3<f64>>,
+        forces: Option<(Forces<'_>, &mut [Vec3<f64>])>,
+    ) {
         assert!(
             Arc::ptr_eq(k.pattern(), &self.pattern),
             "cutfem: stiffness matrix has a foreign pattern"
         );
+        let (n, cells) = (self.pattern.rows(), c.grid.cells.len());
+        if let Some((r, rt)) = c.rotations {
+            assert!(
+                r.len() == cells && rt.len() == cells,
+                "cutfem: one rotation per cell"
+            );
+        }
         // K is symmetric (every element block satisfies K_ji = K_ij^T, rotated or not, and so
         // do the Nitsche terms): compute the upper triangle, mirror the rest.
-        let block = |kk: usize| -> Mat3<f64> {
-            let mut acc = Mat3::default();
-            for &(e, ij) in &self.contrib[self.contrib_ptr[kk] as usize..self.contrib_ptr[kk + 1] as usize] {
-                let (e, i, j) = (e as usize, (ij / 8) as usize, (ij % 8) as usize);
-                let mut b = blocks.get(e, i, j);
-                let se = scale.map_or(1.0, |s| s[e]);
-                if se != 1.0 {
-                    b = b * se;
-                }
-                if let Some(r) = rotations {
-                    b = rotate_block(&r[e], &b);
-                }
-                if dirichlet[e] {
-                    let ci = &grid.cells[e].integrals;
-                    let n = Vec3::from_array(ci.normal);
-                    b = b + self
-                        .tables
-                        .nitsche_block(&ci.boundary, n, i, j, m.lambda * se, m.mu * se, m.eta);
-                }
-                acc = acc + b;
-            }
-            acc
-        };
-        // In place, without a buffer: the upper entries, then each lower one from its mirror.
         let values = k.batch_values_mut(0);
+        let chunks = self.pattern.split_rows_mut(values, ROW_CHUNK);
+        let forces_given = forces.is_some();
+        match forces {
+            Some((fo, f)) => {
+                assert!(
+                    f.len() == n && fo.mass.len() == n,
+                    "cutfem: forces of another size"
+                );
+                assert!(
+                    fo.cell_forces.map_or(true, |cf| cf.len() == cells),
+                    "cutfem: corner forces per cell"
+                );
+                chunks
+                    .into_par_iter()
+                    .zip(f.par_chunks_mut(ROW_CHUNK))
+                    .for_each(|((r0, vals), fc)| {
+                        self.upper_rows(c, r0, vals);
+                        for (o, out) in fc.iter_mut().enumerate() {
+                            *out = self.node_force(&fo, r0 + o);
+                        }
+                    });
+            }
+            None => chunks
+                .into_par_iter()
+                .for_each(|(r0, vals)| self.upper_rows(c, r0, vals)),
+        }
+        if forces_given {
+            return; // a step: the Newmark pass mirrors
+        }
+        // In place, without a buffer: each lower entry from its mirror above the diagonal.
+        let rp = self.pattern.row_ptr();
         let out = EntryWriter(values.as_mut_ptr(), values.len());
-        self.upper.par_iter().with_min_len(256).for_each(|&kk| {
-            let b = block(kk as usize);
-            // SAFETY: `upper` lists distinct entries of the pattern (`< values.len()`), so
-            // every task writes its own entry and nothing reads them during this pass.
-            unsafe { out.write(kk as usize, b) };
-        });
-        self.lower
-            .par_iter()
-            .with_min_len(1024)
-            .for_each(|&(kk, mirror)| {
-                // SAFETY: the `kk` are distinct entries below the diagonal, each written by one
-                // task; the `mirror`s are entries above it, written in the finished pass above and
-                // only read here, so no entry is both read and written in this pass.
-                unsafe { out.write(kk as usize, out.read(mirror as usize).transpose()) };
-            });
-    }
-
-    /// Per-cell rotations from the displacement `u` (eq. 4.4.8-4.4.9).
-    pub fn rotations(&self, grid: &Grid, u: &Matrix<Vec3<f64>>, iterations: usize) -> Vec<Mat3<f64>> {
-        let h = grid.h();
-        let us = u.as_slice();
-        grid.cells
-            .par_iter()
-            .map(|c| {
-                let ue: [Vec3<f64>; 8] = std::array::from_fn(|q| us[c.dofs[q] as usize]);
-                super::element::polar_rotation(super::element::deformation_gradient(&ue, h), iterations)
-            })
-            .collect()
-    }
-
-    /// Adds the corotation forces `f_i -= sum_j R K_ij (R^T x_j - x_j)` to `f`.
-    pub fn add_corotation_forces(
-        &self,
-        grid: &Grid,
-        blocks: &ElementBlocks,
-        rotations: &[Mat3<f64>],
-        scale: Option<&[f64]>,
-        f: &mut Matrix<Vec3<f64>>,
-    ) {
-        let x = corner_offsets(grid.h());
-        // per cell: the 8 corner forces
-        let cell_forces: Vec<[Vec3<f64>; 8]> = grid
-            .cells
-            .par_iter()
-            .enumerate()
-            .map(|(e, _)| {
-                let r = rotations[e];
-                let rt = r.transpose();
-                let d: [Vec3<f64>; 8] = std::array::from_fn(|j| rt * x[j] - x[j]);
-                let k = blocks.cell(e);
-                std::array::from_fn(|i| {
-                    let mut s = Vec3::default();
-                    for j in 0..8 {
-                        s = s + k[i][j] * d[j];
-                    }
-                    -(r * s) * scale.map_or(1.0, |s| s[e])
-                })
-            })
-            .collect();
-        let fs = f.as_mut_slice();
-        fs.par_iter_mut().enumerate().for_each(|(dof, out)| {
-            for &(e, q) in &self.node_cells[self.node_ptr[dof] as usize..self.node_ptr[dof + 1] as usize] {
-                *out = *out + cell_forces[e as usize][q as usize];
+        (0..n.div_ceil(ROW_CHUNK)).into_par_iter().for_each(|ci| {
+            for r in ci * ROW_CHUNK..((ci + 1) * ROW_CHUNK).min(n) {
+                for kk in rp[r]..self.diag[r] as usize {
+                    // SAFETY: the `kk` are distinct entries below the diagonal, each written by
+                    // one task; their mirrors lie on or above it, written in the finished pass
+                    // above and only read here, so no entry is both read and written here.
+                    unsafe { out.write(kk, out.read(self.mirror[kk] as usize).transpose()) };
+                }
             }
         });
+    }
+
+    /// `m_r g` plus the corner forces of node `r`, summed in [`Assembler::cells_of`] order.
+    #[inline]
+    fn node_force(&self, fo: &Forces<'_>, r: usize) -> Vec3<f64> {
+        let mut acc = gpumat::Scalar::scale(fo.gravity, fo.mass[r]);
+        if let Some(cf) = fo.cell_forces {
+            for &(e, q) in self.cells_of(r) {
+                acc = acc + cf[e as usize][q as usize];
+            }
+        }
+        acc
+    }
+
+    /// The upper blocks (from each row's diagonal on) of the rows from `r0` into `vals` (the
+    /// values of those rows), in AVX2 registers where the CPU has them (the same operations
+    /// in the same order: the values do not depend on it).
+    fn upper_rows(&self, c: &Cells<'_>, r0: usize, vals: &mut [Mat3<f64>]) {
+        struct Rows<'a> {
+            asm: &'a Assembler,
+            c: &'a Cells<'a>,
+            r0: usize,
+            vals: &'a mut [Mat3<f64>],
+        }
+        impl Kernel for Rows<'_> {
+            type Output = ();
+            #[inline(always)]
+            fn run<S: Simd4>(self, s: S) {
+                self.asm.upper_rows_with(s, self.c, self.r0, self.vals)
+            }
+        }
+        dispatch(Rows {
+            asm: self,
+            c,
+            r0,
+            vals,
+        })
+    }
+
+    #[inline(always)]
+    fn upper_rows_with<S: Simd4>(&self, s: S, c: &Cells<'_>, r0: usize, vals: &mut [Mat3<f64>]) {
+        let rp = self.pattern.row_ptr();
+        let (base, r1) = (rp[r0], (r0 + ROW_CHUNK).min(self.pattern.rows()));
+        // plain loops (no iterator adapters), so that everything inlines into this function
+        // and is compiled with its target features
+        macro_rules! rows {
+            ($block:expr) => {
+                for r in r0..r1 {
+                    for kk in self.diag[r] as usize..rp[r + 1] {
+                        vals[kk - base] = $block(kk);
+                    }
+                }
+            };
+        }
+        match (c.rotations, c.scale) {
+            (Some((rot, rt)), None) => rows!(|kk| self.rotated_block::<S, false>(s, c, rot, rt, &[], kk)),
+            (Some((rot, rt)), Some(sc)) => rows!(|kk| self.rotated_block::<S, true>(s, c, rot, rt, sc, kk)),
+            (None, sc) => rows!(|kk| self.plain_block(c, sc, kk)),
+        }
+    }
+
+    /// The element blocks `(cell, 8 i + j)` summing into entry `kk`, in cell order.
+    #[inline(always)]
+    fn contributions(&self, kk: usize) -> &[(u32, u8)] {
+        &self.contrib[self.contrib_ptr[kk] as usize..self.contrib_ptr[kk + 1] as usize]
+    }
+
+    /// The Nitsche terms of element block `(e, i, j)`, Young's modulus scaled by `se`.
+    #[inline(always)]
+    fn nitsche(&self, c: &Cells<'_>, e: usize, i: usize, j: usize, se: f64) -> Mat3<f64> {
+        let ci = &c.grid.cells[e].integrals;
+        let n = Vec3::from_array(ci.normal);
+        self.tables
+            .nitsche_block(&ci.boundary, n, i, j, c.m.lambda * se, c.m.mu * se, c.m.eta)
+    }
+
+    /// Entry `kk` without rotation: the fixed-order sum of its element blocks (scaled by
+    /// `scale[e]`, plus the Nitsche terms of Dirichlet cells).
+    #[inline(always)]
+    fn plain_block(&self, c: &Cells<'_>, scale: Option<&[f64]>, kk: usize) -> Mat3<f64> {
+        let mut acc = Mat3::default();
+        for &(e, ij) in self.contributions(kk) {
+            let (e, i, j) = (e as usize, (ij / 8) as usize, (ij % 8) as usize);
+            let mut b = c.blocks.get(e, i, j);
+            let se = scale.map_or(1.0, |s| s[e]);
+            if se != 1.0 {
+                b = b * se;
+            }
+            if c.dirichlet[e] {
+                b = b + self.nitsche(c, e, i, j, se);
+            }
+            acc = acc + b;
+        }
+        acc
+    }
+
+    /// Entry `kk` of the corotated stiffness: the fixed-order sum of its element blocks
+    /// `R_e (s_e K_ij) R_e^T` plus the Nitsche terms of Dirichlet cells ([`rotate_add`]).
+    #[inline(always)]
+    fn rotated_block<S: Simd4, const SCALE: bool>(
+        &self,
+        s: S,
+        c: &Cells<'_>,
+        rot: &[Mat3<f64>],
+        rt: &[PaddedBlock],
+        scale: &[f64],
+        kk: usize,
+    ) -> Mat3<f64> {
+        let mut acc = [s.splat(0.0); 3];
+        for &(e, ij) in self.contributions(kk) {
+            let (e, i, j) = (e as usize, (ij / 8) as usize, (ij % 8) as usize);
+            let b = &c.blocks.cell(e)[i][j];
+            let (r, rt) = (&rot[e], &rt[e]);
+            if SCALE || c.dirichlet[e] {
+                // the rarer cells: scaled blocks, Nitsche terms
+                let se = if SCALE { scale[e] } else { 1.0 };
+                let b = if se != 1.0 { *b * se } else { *b };
+                let nitsche = c.dirichlet[e].then(|| self.nitsche(c, e, i, j, se));
+                rotate_add(s, &mut acc, r, rt, &b, nitsche.as_ref());
+            } else {
+                rotate_add(s, &mut acc, r, rt, b, None);
+            }
+        }
+        Mat3 {
+            m: acc.map(|row| lanes3(s, row)),
+        }
     }
 
     /// Lumped mass per dof: `density * sum_e w_v(e, i)` (thesis eq. 2.5.14 lumped, sec. 4.4.2).
@@ -392,4 +472,21 @@ impl Assembler {
     pub fn cells_of(&self, dof: usize) -> &[(u32, u8)] {
         &self.node_cells[self.node_ptr[dof] as usize..self.node_ptr[dof + 1] as usize]
     }
+}
+
+/// What the stiffness passes read per cell: `rotations` is `(R_e, padded R_e^T)`.
+struct Cells<'a> {
+    grid: &'a Grid,
+    m: &'a Material,
+    blocks: &'a ElementBlocks,
+    rotations: Option<(&'a [Mat3<f64>], &'a [PaddedBlock])>,
+    dirichlet: &'a [bool],
+    scale: Option<&'a [f64]>,
+}
+
+/// What the node forces of [`Assembler::assemble_with_forces`] read.
+struct Forces<'a> {
+    mass: &'a [f64],
+    gravity: Vec3<f64>,
+    cell_forces: Option<&'a [[Vec3<f64>; 8]]>,
 }

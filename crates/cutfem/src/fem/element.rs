@@ -12,7 +12,10 @@
 //! `K_ij[p][q] = lambda a_p b_q + mu a_q b_p + mu (a . b) delta_pq` (eq. 4.4.5, the integrand of
 //! `B^T C B` split into 3x3 blocks); it is linear in `(lambda, mu)`.
 
+use super::grid::Grid;
+use gpumat::simd::Simd4;
 use gpumat::{Mat3, Vec3};
+use rayon::prelude::*;
 
 /// `grad N_i` at corner `c` of a cell of size `h`.
 pub fn basis_gradient(i: usize, c: usize, h: f64) -> Vec3<f64> {
@@ -88,22 +91,24 @@ impl StiffnessTables {
     /// at corner `c`, `KD[p][r] = mu (B.n) delta_pr + mu B_p n_r + lambda n_p B_r` with
     /// `B = grad N_j(v_c)`. (The thesis' printed entry (3,2) reads `B1 lambda n3`; the
     /// derivation gives `B2 lambda n3`, used here.)
-    #[inline]
+    #[inline(always)]
     pub fn traction_block(&self, j: usize, c: usize, n: Vec3<f64>, lambda: f64, mu: f64) -> Mat3<f64> {
         let b = self.grad[c][j].to_array();
         let n = n.to_array();
         let bn = b[0] * n[0] + b[1] * n[1] + b[2] * n[2];
-        Mat3::from_rows(std::array::from_fn(|p| {
-            std::array::from_fn(|r| {
-                mu * b[p] * n[r] + lambda * n[p] * b[r] + if p == r { mu * bn } else { 0.0 }
-            })
-        }))
+        let f =
+            |p: usize, r: usize| mu * b[p] * n[r] + lambda * n[p] * b[r] + if p == r { mu * bn } else { 0.0 };
+        Mat3::from_rows([
+            [f(0, 0), f(0, 1), f(0, 2)],
+            [f(1, 0), f(1, 1), f(1, 2)],
+            [f(2, 0), f(2, 1), f(2, 2)],
+        ])
     }
 
     /// The Nitsche terms of block `(i, j)` for boundary weights `wb`, outward normal `n` and
     /// penalty `eta` (eq. 4.4.16, 4.4.17, with the penalty entering with a positive sign so the
     /// form stays coercive): `- wb_i KD_{j,i} - wb_j KD_{i,j}^T + delta_ij eta wb_i I`.
-    #[inline]
+    #[inline(always)]
     pub fn nitsche_block(
         &self,
         wb: &[f64; 8],
@@ -128,6 +133,80 @@ impl StiffnessTables {
     }
 }
 
+/// The unrotated element blocks `K_ij(e)` for one material: one shared set for all full
+/// cells (their weights are all `h^3/8`) and one set per distinct weight vector of the cut
+/// cells (cells cut alike, e.g. along a flat face, share theirs: bit-identical weights give
+/// bit-identical blocks, and a smaller table is less memory traffic in every assembly).
+/// Rebuilt only when the material changes.
+#[derive(Clone, Debug)]
+pub struct ElementBlocks {
+    /// Lame lambda the blocks were built for
+    pub lambda: f64,
+    /// Lame mu the blocks were built for
+    pub mu: f64,
+    /// the block sets: the full cells' first, then one per distinct cut weight vector
+    sets: Vec<[[Mat3<f64>; 8]; 8]>,
+    /// per cell: its index into `sets` (0 for a full cell)
+    set_of: Vec<u32>,
+    /// the same blocks transposed and padded ([`padded_transpose`]): their columns as
+    /// vectors, for [`corotation_forces`]
+    columns: Vec<[[PaddedBlock; 8]; 8]>,
+}
+
+impl ElementBlocks {
+    /// Builds the blocks of every cell of `grid` for `(lambda, mu)`.
+    pub fn new(tables: &StiffnessTables, grid: &Grid, lambda: f64, mu: f64) -> Self {
+        let full = [grid.h().powi(3) / 8.0; 8];
+        let block_set = |w: &[f64; 8]| -> [[Mat3<f64>; 8]; 8] {
+            std::array::from_fn(|i| std::array::from_fn(|j| tables.block(w, i, j, lambda, mu)))
+        };
+        // distinct cut weight vectors in order of first appearance (deterministic)
+        let mut set_of = vec![0u32; grid.cells.len()];
+        let mut seen: std::collections::HashMap<[u64; 8], u32> = std::collections::HashMap::new();
+        let mut weights: Vec<&[f64; 8]> = vec![&full];
+        for (e, c) in grid.cells.iter().enumerate() {
+            if !c.is_full() {
+                let v = &c.integrals.volume;
+                set_of[e] = *seen.entry(v.map(f64::to_bits)).or_insert_with(|| {
+                    weights.push(v);
+                    (weights.len() - 1) as u32
+                });
+            }
+        }
+        let sets: Vec<[[Mat3<f64>; 8]; 8]> = weights.par_iter().map(|w| block_set(w)).collect();
+        let columns = sets
+            .iter()
+            .map(|set| set.map(|row| row.map(|b| padded_transpose(&b))))
+            .collect();
+        Self {
+            lambda,
+            mu,
+            sets,
+            set_of,
+            columns,
+        }
+    }
+    /// Number of distinct cut-cell block sets stored.
+    pub fn cut_sets(&self) -> usize {
+        self.sets.len() - 1
+    }
+    /// `K_ij(e)`.
+    #[inline(always)]
+    pub fn get(&self, e: usize, i: usize, j: usize) -> Mat3<f64> {
+        self.cell(e)[i][j]
+    }
+    /// All 64 blocks of cell `e`.
+    #[inline(always)]
+    pub fn cell(&self, e: usize) -> &[[Mat3<f64>; 8]; 8] {
+        &self.sets[self.set_of[e] as usize]
+    }
+    /// All 64 blocks of cell `e`, transposed and padded (their columns as vectors).
+    #[inline(always)]
+    pub fn cell_columns(&self, e: usize) -> &[[PaddedBlock; 8]; 8] {
+        &self.columns[self.set_of[e] as usize]
+    }
+}
+
 /// Corner positions of a cell relative to its first corner.
 pub fn corner_offsets(h: f64) -> [Vec3<f64>; 8] {
     std::array::from_fn(|c| {
@@ -141,6 +220,7 @@ pub fn corner_offsets(h: f64) -> [Vec3<f64>; 8] {
 
 /// The average deformation gradient of a cell (eq. 4.4.8):
 /// `F = I + 1/(4h) sum_i u_i (s_i)^T` with `s_i = (+-1, +-1, +-1)` the corner's sign pattern.
+#[inline]
 pub fn deformation_gradient(u: &[Vec3<f64>; 8], h: f64) -> Mat3<f64> {
     let mut f = Mat3::identity();
     for (i, ui) in u.iter().enumerate() {
@@ -159,6 +239,7 @@ pub const POLAR_ITERATIONS: usize = 5;
 
 /// The rotation of `F = R S` by `R <- (R + R^-T)/2` (eq. 4.4.9), `iterations` times. Returns
 /// the identity when `det F` is tiny or not finite (collapsed cell), as the thesis does.
+#[inline]
 pub fn polar_rotation(f: Mat3<f64>, iterations: usize) -> Mat3<f64> {
     let det = f.determinant();
     if !det.is_finite() || det.abs() < 1e-6 {
@@ -174,9 +255,229 @@ pub fn polar_rotation(f: Mat3<f64>, iterations: usize) -> Mat3<f64> {
     r
 }
 
+/// The rotations of four cells at once ([`polar_rotation`] of [`deformation_gradient`] with
+/// the corner displacements `u[l]` of cell `l`), cell `l` in lane `l` of every vector: per
+/// lane the same operations in the same order as the scalar functions (and the same identity
+/// fallbacks), so the values are bit-identical to them; four independent chains of divisions
+/// run side by side.
+#[inline(always)]
+pub fn cell_rotations4<S: Simd4>(s: S, u: &[[Vec3<f64>; 8]; 4], h: f64, iterations: usize) -> [Mat3<f64>; 4] {
+    // (no closures or array maps: everything must inline into the caller's vector code)
+    #[inline(always)]
+    fn det<S: Simd4>(s: S, m: &[[S::V; 3]; 3]) -> S::V {
+        let t0 = s.sub(s.mul(m[1][1], m[2][2]), s.mul(m[1][2], m[2][1]));
+        let t1 = s.sub(s.mul(m[1][0], m[2][2]), s.mul(m[1][2], m[2][0]));
+        let t2 = s.sub(s.mul(m[1][0], m[2][1]), s.mul(m[1][1], m[2][0]));
+        s.add(s.sub(s.mul(m[0][0], t0), s.mul(m[0][1], t1)), s.mul(m[0][2], t2))
+    }
+    /// `(m[a][b] m[c][d] - m[e][f] m[g][h]) inv`
+    #[inline(always)]
+    fn cof<S: Simd4>(s: S, m: &[[S::V; 3]; 3], i: [usize; 8], inv: S::V) -> S::V {
+        let x = s.mul(m[i[0]][i[1]], m[i[2]][i[3]]);
+        let y = s.mul(m[i[4]][i[5]], m[i[6]][i[7]]);
+        s.mul(s.sub(x, y), inv)
+    }
+    // F = I + sum_i (u_i s_i^T) / (4h)
+    let k = s.splat(1.0 / (4.0 * h));
+    let (one, zero) = (s.splat(1.0), s.splat(0.0));
+    let mut f = [[one, zero, zero], [zero, one, zero], [zero, zero, one]];
+    for i in 0..8 {
+        let sign = [
+            if i & 1 == 1 { 1.0 } else { -1.0 },
+            if i & 2 == 2 { 1.0 } else { -1.0 },
+            if i & 4 == 4 { 1.0 } else { -1.0 },
+        ];
+        for p in 0..3 {
+            let c = |l: usize| u[l][i].to_array()[p];
+            let up = s.set([c(0), c(1), c(2), c(3)]);
+            for q in 0..3 {
+                f[p][q] = s.add(f[p][q], s.mul(s.mul(up, s.splat(sign[q])), k));
+            }
+        }
+    }
+    let d = s.to_array(det(s, &f));
+    let mut identity = [false; 4];
+    for l in 0..4 {
+        identity[l] = !d[l].is_finite() || d[l].abs() < 1e-6;
+    }
+    let mut r = f;
+    for _ in 0..iterations {
+        let dv = det(s, &r);
+        let d = s.to_array(dv);
+        for l in 0..4 {
+            // `Mat3::inverse` is `None`: `polar_rotation` returns the identity
+            identity[l] |= d[l] == 0.0 || !d[l].is_finite();
+        }
+        let inv = s.div(s.splat(1.0), dv);
+        // the entries of `Mat3::inverse`
+        let iv = [
+            [
+                cof(s, &r, [1, 1, 2, 2, 1, 2, 2, 1], inv),
+                cof(s, &r, [0, 2, 2, 1, 0, 1, 2, 2], inv),
+                cof(s, &r, [0, 1, 1, 2, 0, 2, 1, 1], inv),
+            ],
+            [
+                cof(s, &r, [1, 2, 2, 0, 1, 0, 2, 2], inv),
+                cof(s, &r, [0, 0, 2, 2, 0, 2, 2, 0], inv),
+                cof(s, &r, [0, 2, 1, 0, 0, 0, 1, 2], inv),
+            ],
+            [
+                cof(s, &r, [1, 0, 2, 1, 1, 1, 2, 0], inv),
+                cof(s, &r, [0, 1, 2, 0, 0, 0, 2, 1], inv),
+                cof(s, &r, [0, 0, 1, 1, 0, 1, 1, 0], inv),
+            ],
+        ];
+        let half = s.splat(0.5);
+        for i in 0..3 {
+            for j in 0..3 {
+                r[i][j] = s.mul(s.add(r[i][j], iv[j][i]), half);
+            }
+        }
+    }
+    let mut out = [Mat3::identity(); 4];
+    let mut lanes = [[[0.0; 4]; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            lanes[i][j] = s.to_array(r[i][j]);
+        }
+    }
+    for l in 0..4 {
+        if !identity[l] {
+            for i in 0..3 {
+                for j in 0..3 {
+                    out[l].m[i][j] = lanes[i][j][l];
+                }
+            }
+        }
+    }
+    out
+}
+
 /// Lame coefficients `(lambda, mu)` of Young's modulus `e` and Poisson ratio `nu`.
 pub fn lame(e: f64, nu: f64) -> (f64, f64) {
     let mu = e / (2.0 * (1.0 + nu));
     let lambda = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
     (lambda, mu)
+}
+
+/// `R B R^T` with plain loops (the operation order that [`rotate_block_rows`] reproduces).
+#[inline(always)]
+pub fn rotate_block(r: &Mat3<f64>, b: &Mat3<f64>) -> Mat3<f64> {
+    let (r, b) = (&r.m, &b.m);
+    // t = B R^T
+    let mut t = [[0.0f64; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            t[i][j] = b[i][0] * r[j][0] + b[i][1] * r[j][1] + b[i][2] * r[j][2];
+        }
+    }
+    let mut o = [[0.0f64; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            o[i][j] = r[i][0] * t[0][j] + r[i][1] * t[1][j] + r[i][2] * t[2][j];
+        }
+    }
+    Mat3 { m: o }
+}
+
+/// A block as three rows of four lanes (the fourth lane is padding), the layout of vector
+/// registers.
+pub type PaddedBlock = [[f64; 4]; 3];
+
+/// `R^T` padded to four lanes per row: `rt[l][j] = R[j][l]`, `rt[l][3] = 0`.
+#[inline]
+pub fn padded_transpose(r: &Mat3<f64>) -> PaddedBlock {
+    let m = &r.m;
+    [
+        [m[0][0], m[1][0], m[2][0], 0.0],
+        [m[0][1], m[1][1], m[2][1], 0.0],
+        [m[0][2], m[1][2], m[2][2], 0.0],
+    ]
+}
+
+/// `acc += R B R^T (+ extra)` (the hot spot of the corotated assembly) with the vectors of
+/// `s`: from `R`, its padded transpose `rt` ([`padded_transpose`]) and `B`, the rows
+/// `t_k = sum_l b_kl rt_l` of `B R^T`, then the rows `o_i = sum_k r_ik t_k` of `R B R^T`, then
+/// `acc_i += o_i + extra_i` (lane 3 is padding). Lane by lane these are the operations of
+/// [`rotate_block`] in the same order (no fused multiply-add), so the values are bit-identical
+/// to it on every backend.
+#[inline(always)]
+pub fn rotate_add<S: Simd4>(
+    s: S,
+    acc: &mut [S::V; 3],
+    r: &Mat3<f64>,
+    rt: &PaddedBlock,
+    b: &Mat3<f64>,
+    extra: Option<&Mat3<f64>>,
+) {
+    let x = [s.load(&rt[0]), s.load(&rt[1]), s.load(&rt[2])];
+    let t = [comb(s, &b.m[0], &x), comb(s, &b.m[1], &x), comb(s, &b.m[2], &x)];
+    for i in 0..3 {
+        let mut o = comb(s, &r.m[i], &t);
+        if let Some(n) = extra {
+            let n = &n.m[i];
+            o = s.add(o, s.set([n[0], n[1], n[2], 0.0]));
+        }
+        acc[i] = s.add(acc[i], o);
+    }
+}
+
+/// `a[0] v[0] + a[1] v[1] + a[2] v[2]`, lane-wise, left to right.
+#[inline(always)]
+fn comb<S: Simd4>(s: S, a: &[f64; 3], v: &[S::V; 3]) -> S::V {
+    s.add(
+        s.add(s.mul(s.splat(a[0]), v[0]), s.mul(s.splat(a[1]), v[1])),
+        s.mul(s.splat(a[2]), v[2]),
+    )
+}
+
+/// The first three lanes of `v`.
+#[inline(always)]
+pub fn lanes3<S: Simd4>(s: S, v: S::V) -> [f64; 3] {
+    let a = s.to_array(v);
+    [a[0], a[1], a[2]]
+}
+
+/// `i ^ j` of opposite corners of a cell. No corner has nonzero gradients of both `N_i` and
+/// `N_j`, so under the corner rule their stiffness and Nitsche blocks are exactly zero.
+pub const OPPOSITE: usize = 7;
+
+/// The corotation forces `-(R sum_j K_ij (R^T x_j - x_j)) sc` (eq. 4.4.6/4.4.10) at the eight
+/// corners of a cell from the columns `kc` of its blocks ([`ElementBlocks::cell_columns`]), its
+/// rotation `r` and padded transpose `rt` ([`padded_transpose`]), the corner offsets `x`
+/// ([`corner_offsets`]) and the stiffness scale `sc`, with the vectors of `s`. Lane `p` of each
+/// vector step is the component `p` of the textbook formula with the same operations in the
+/// same order (`R^T x = sum_k R_k x_k` over the rows `R_k`, `K d = sum_l K_(.l) d_l` over the
+/// columns), so the values equal those of plain loops bit for bit. The zero blocks of opposite
+/// corners are skipped (a sum that starts at +0 is not changed by adding zeros).
+#[inline(always)]
+pub fn corotation_forces<S: Simd4>(
+    s: S,
+    kc: &[[PaddedBlock; 8]; 8],
+    r: &Mat3<f64>,
+    rt: &PaddedBlock,
+    x: &[Vec3<f64>; 8],
+    sc: f64,
+) -> [Vec3<f64>; 8] {
+    let load3 = |v: &PaddedBlock| [s.load(&v[0]), s.load(&v[1]), s.load(&v[2])];
+    let m = &r.m;
+    let rows = [0, 1, 2].map(|p| s.set([m[p][0], m[p][1], m[p][2], 0.0]));
+    let mut d = [[0.0; 3]; 8];
+    for j in 0..8 {
+        let xj = x[j].to_array();
+        d[j] = lanes3(s, s.sub(comb(s, &xj, &rows), s.set([xj[0], xj[1], xj[2], 0.0])));
+    }
+    let rtv = load3(rt);
+    let mut f = [Vec3::default(); 8];
+    for i in 0..8 {
+        let mut sum = s.splat(0.0);
+        for j in 0..8 {
+            if i ^ j != OPPOSITE {
+                sum = s.add(sum, comb(s, &d[j], &load3(&kc[i][j])));
+            }
+        }
+        let rs = lanes3(s, comb(s, &lanes3(s, sum), &rtv));
+        f[i] = Vec3::new(-rs[0] * sc, -rs[1] * sc, -rs[2] * sc);
+    }
+    f
 }

@@ -1,8 +1,102 @@
 //! The physical model of a simulation: material, damping, forces, boundaries, time stepping.
+//!
+//! Besides gravity's body force `M g`, a model may carry a generic [`ExternalForce`]: a nodal
+//! force linear in `K` coefficients and independent of the state,
+//! `f_ext = sum_k c_k F_k` (one `Vec3` per degree of freedom in each basis field `F_k`). It is
+//! added to the force vector `f` of every step, so it enters the Newmark right-hand side as
+//! `dt f_ext` (eq. 2.6.2) exactly like gravity; effects defined outside cutfem (e.g. the
+//! `wind` traction of the adjoint crate) build their basis from the grid and need no code here.
 
 use super::collision::Ground;
 use crate::error::Error;
-use gpumat::Vec3;
+use gpumat::{Matrix, Vec3};
+use std::sync::Arc;
+
+/// A state-independent nodal force linear in its coefficients: `f = sum_k c_k F_k`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExternalForce {
+    /// the `K` basis fields `F_k`, one `Vec3` per degree of freedom each (shared: the basis
+    /// does not change while a fit moves the coefficients)
+    pub basis: Arc<Vec<Vec<Vec3<f64>>>>,
+    /// the coefficients `c_k`
+    pub coefficients: Vec<f64>,
+    /// a name per coefficient, for reports (e.g. `wind.x`)
+    pub labels: Vec<String>,
+}
+
+impl ExternalForce {
+    /// Number of coefficients `K`.
+    pub fn len(&self) -> usize {
+        self.coefficients.len()
+    }
+    /// True without coefficients.
+    pub fn is_empty(&self) -> bool {
+        self.coefficients.is_empty()
+    }
+
+    /// Appends other fields (e.g. of a second effect): the bases, coefficients and labels are
+    /// concatenated.
+    pub fn extend(&mut self, other: &ExternalForce) {
+        let mut basis = (*self.basis).clone();
+        basis.extend(other.basis.iter().cloned());
+        self.basis = Arc::new(basis);
+        self.coefficients.extend(&other.coefficients);
+        self.labels.extend(other.labels.iter().cloned());
+    }
+
+    /// Checks that there are as many basis fields and labels as coefficients, that every field
+    /// has the same length and that all values are finite (messages name the scene key
+    /// `model.external_force`).
+    pub fn validate(&self) -> Result<(), String> {
+        let k = self.coefficients.len();
+        if self.basis.len() != k || self.labels.len() != k {
+            return Err(format!(
+                "{} basis fields and {} labels for {k} coefficients",
+                self.basis.len(),
+                self.labels.len()
+            ));
+        }
+        if let Some(c) = self.coefficients.iter().find(|c| !c.is_finite()) {
+            return Err(format!("coefficients must be finite, got {c}"));
+        }
+        let n = self.basis.first().map_or(0, Vec::len);
+        for (f, label) in self.basis.iter().zip(&self.labels) {
+            if f.len() != n {
+                return Err(format!(
+                    "the field of `{label}` has {} values, the first {n}",
+                    f.len()
+                ));
+            }
+            if f.iter().any(|v| !v.to_array().iter().all(|x| x.is_finite())) {
+                return Err(format!("the field of `{label}` is not finite"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Errors unless every basis field has one value per degree of freedom.
+    pub fn check_dofs(&self, dofs: usize) -> Result<(), Error> {
+        match self.basis.iter().find(|f| f.len() != dofs) {
+            Some(f) => Err(Error::Invalid(format!(
+                "model.external_force: a basis field has {} values for {dofs} degrees of freedom",
+                f.len()
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// Adds `sum_k c_k F_k` to `f`.
+    pub fn add_to(&self, f: &mut Matrix<Vec3<f64>>) {
+        let fs = f.as_mut_slice();
+        for (field, &c) in self.basis.iter().zip(&self.coefficients) {
+            if c != 0.0 {
+                for (out, v) in fs.iter_mut().zip(field) {
+                    *out = *out + *v * c;
+                }
+            }
+        }
+    }
+}
 
 /// An axis-aligned box.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,6 +145,8 @@ pub struct Model {
     /// per active cell, a factor on Young's modulus (the `stiffness_field` effect; `None`:
     /// homogeneous)
     pub stiffness_scale: Option<std::sync::Arc<[f64]>>,
+    /// a state-independent nodal force linear in its coefficients (module docs; `None`: none)
+    pub external_force: Option<ExternalForce>,
     /// time step
     pub dt: f64,
     /// Newmark-1 theta in [0.5, 1)
@@ -73,6 +169,7 @@ impl Default for Model {
             initial_velocity: Vec3::default(),
             initial_angular_velocity: Vec3::default(),
             stiffness_scale: None,
+            external_force: None,
             dt: 0.01,
             theta: 0.6,
         }
@@ -151,12 +248,24 @@ impl Model {
                 );
             }
         }
+        if let Some(e) = &self.external_force {
+            if let Err(why) = e.validate() {
+                return bad("model.external_force", why);
+            }
+        }
         for (i, b) in self.dirichlet.iter().enumerate() {
             if !(0..3).all(|d| b.min[d] <= b.max[d]) {
                 return bad(&format!("dirichlet[{i}]"), "min must not exceed max".into());
             }
         }
         Ok(())
+    }
+
+    /// Errors unless the external force, if any, has one value per degree of freedom.
+    pub fn check_external_dofs(&self, dofs: usize) -> Result<(), Error> {
+        self.external_force
+            .as_ref()
+            .map_or(Ok(()), |e| e.check_dofs(dofs))
     }
 
     /// Lame coefficients `(lambda, mu)`.

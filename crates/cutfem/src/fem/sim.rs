@@ -15,7 +15,7 @@
 //! preconditioner (block-Jacobi, block IC(0) or a reused rest-state Cholesky factor) is chosen
 //! in [`SolverSettings`] (see [`super::solver`]).
 
-use super::assembly::{Assembler, ElementBlocks, Material};
+use super::assembly::{fill_newmark, Assembler, CellWork, ElementBlocks, Material};
 use super::collision::{add_ground_forces, crossings, Crossing};
 use super::element::POLAR_ITERATIONS;
 use super::grid::Grid;
@@ -80,6 +80,8 @@ pub struct Simulation {
     blocks: Option<ElementBlocks>,
     linear: LinearSolver,
     rotations: Option<Vec<Mat3<f64>>>,
+    /// per-cell data of the corotated assembly (buffers reused by every step)
+    cell_work: CellWork,
     contact: Vec<(Crossing, f64)>,
     f: Matrix<Vec3<f64>>,
     b: Matrix<Vec3<f64>>,
@@ -90,6 +92,7 @@ impl Simulation {
     /// with the model's initial velocity.
     pub fn new(grid: Grid, model: Model) -> Result<Self, Error> {
         model.validate()?;
+        model.check_external_dofs(grid.dofs())?;
         if let Some(s) = &model.stiffness_scale {
             if s.len() != grid.cells.len() {
                 return Err(Error::Invalid(format!(
@@ -125,6 +128,7 @@ impl Simulation {
             blocks: None,
             linear,
             rotations: None,
+            cell_work: CellWork::default(),
             contact: Vec::new(),
         };
         sim.v = sim.initial_velocity();
@@ -149,6 +153,7 @@ impl Simulation {
     /// the new density and Dirichlet boxes).
     pub fn set_model(&mut self, model: Model) -> Result<(), Error> {
         model.validate()?;
+        model.check_external_dofs(self.grid.dofs())?;
         if let Some(s) = &model.stiffness_scale {
             if s.len() != self.grid.cells.len() {
                 return Err(Error::Invalid(format!(
@@ -229,26 +234,45 @@ impl Simulation {
         (rot, blocks)
     }
 
-    /// Stiffness values and elastic forces for the current state: `K` into `self.k`, body +
-    /// corotation forces into `self.f`. Returns the seconds spent on rotations and stiffness.
+    /// Stiffness values and elastic forces for the current state: `K` on and above the
+    /// diagonal into `self.k` (the Newmark pass of [`Simulation::assemble_system`] mirrors the
+    /// rest), body + corotation forces into `self.f`, in one sweep over the cells (rotations and
+    /// corner forces) and one over the rows (upper blocks and node forces), reusing the buffers
+    /// of the last step. Returns the seconds spent, all of it counted as rotations and
+    /// stiffness (the corner forces are computed in the same sweeps).
     fn assemble(&mut self) -> f64 {
         let t = Instant::now();
-        let (rot, blocks) = self.assemble_stiffness(self.model.corotation);
-        let stiffness_s = t.elapsed().as_secs_f64();
-        self.f
-            .assign(self.mass.ex().cwise_mul(gpumat::scalar(self.model.gravity)));
-        if let Some(r) = &rot {
-            self.assembler.add_corotation_forces(
+        let m = self.material();
+        let blocks = self.blocks();
+        let scale = self.model.stiffness_scale.as_deref();
+        let rot = self.model.corotation.then(|| {
+            let mut rot = self.rotations.take().unwrap_or_default();
+            self.assembler.rotations_and_cell_forces(
                 &self.grid,
+                &self.u,
+                POLAR_ITERATIONS,
                 &blocks,
-                r,
-                self.model.stiffness_scale.as_deref(),
-                &mut self.f,
+                scale,
+                &mut rot,
+                &mut self.cell_work,
             );
-        }
+            rot
+        });
+        self.assembler.assemble_upper_with_forces(
+            &self.grid,
+            &m,
+            &blocks,
+            rot.as_deref().map(|r| (r, &self.cell_work)),
+            &self.dirichlet,
+            scale,
+            &mut self.k,
+            &self.mass,
+            self.model.gravity,
+            &mut self.f,
+        );
         self.blocks = Some(blocks);
         self.rotations = rot;
-        stiffness_s
+        t.elapsed().as_secs_f64()
     }
 
     /// Advances one time step: [`Simulation::assemble_system`], then the solve and the
@@ -277,7 +301,7 @@ impl Simulation {
     }
 
     /// The stages of a step before the solve, for the current state `(u, v)`: rotations and
-    /// stiffness (4.4.1), corotation and body forces, ground forces (2.8), then the Newmark
+    /// stiffness (4.4.1), corotation, body and external forces, ground forces (2.8), then the Newmark
     /// matrix `A` and right-hand side `b` (2.6.2). The adjoint pass calls it to recompute `A`
     /// at a stored state instead of storing it (thesis sec. 5.7).
     pub fn assemble_system(&mut self) -> StepInfo {
@@ -285,6 +309,9 @@ impl Simulation {
         let (dt, theta) = (self.model.dt, self.model.theta);
         let t0 = Instant::now();
         info.stiffness_s = self.assemble();
+        if let Some(e) = &self.model.external_force {
+            e.add_to(&mut self.f);
+        }
         info.assembly_s += t0.elapsed().as_secs_f64();
 
         let t1 = Instant::now();
@@ -306,10 +333,11 @@ impl Simulation {
         info.collision_s = t1.elapsed().as_secs_f64();
 
         let t2 = Instant::now();
-        newmark_system(
+        // completes K (the lower blocks) while it writes A and b
+        self.assembler.newmark(
             &self.model,
             &self.mass,
-            &self.k,
+            &mut self.k,
             &self.u,
             &self.v,
             &self.f,
@@ -350,6 +378,9 @@ impl Simulation {
         self.blocks = Some(blocks);
         self.f
             .assign(self.mass.ex().cwise_mul(gpumat::scalar(self.model.gravity)));
+        if let Some(e) = &self.model.external_force {
+            e.add_to(&mut self.f);
+        }
         let mut x = Matrix::zeros(self.grid.dofs(), 1, 1);
         let t = Instant::now();
         let (iterations, residual, fallback) = solve(&self.k, &self.f, &mut x, &self.solver)?;
@@ -462,7 +493,10 @@ impl Simulation {
 }
 
 /// The Newmark-1 system with Rayleigh damping (module docs, eq. 2.6.2): `A` on `K`'s pattern
-/// and `b`, each one fused gpumat expression. Shared by the grid and the tet simulations.
+/// and `b`, in one fused pass over the rows of `K` (each block of `K` read once; fixed row
+/// blocks per task and sums in column order, so the values do not depend on the number of
+/// threads). Shared by the grid and the tet simulations.
+#[allow(clippy::too_many_arguments)]
 pub fn newmark_system(
     model: &Model,
     mass: &Matrix<f64>,
@@ -473,19 +507,7 @@ pub fn newmark_system(
     a: &mut SparseMatrix<Mat3<f64>>,
     b: &mut Matrix<Vec3<f64>>,
 ) {
-    let (dt, theta) = (model.dt, model.theta);
-    let (a1, a2) = (model.damping_mass, model.damping_stiffness);
-    let cm = 1.0 / (theta * dt) + a1;
-    a.assign(
-        (mass.ex().cast::<Mat3<f64>>().as_diagonal() * cm + k.ex() * (a2 + theta * dt))
-            .sparse_view(k.pattern()),
-    );
-    b.assign(
-        mass.ex().cwise_mul(u.ex()) * cm
-            + (k * u) * (a2 - (1.0 - theta) * dt)
-            + mass.ex().cwise_mul(v.ex()) * (1.0 / theta)
-            + f.ex() * dt,
-    );
+    fill_newmark(model, mass, k, u, v, f, a, b);
 }
 
 /// Cells with Nitsche boundary terms: cut cells whose center lies in a Dirichlet box. Errors

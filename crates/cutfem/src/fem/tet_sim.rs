@@ -67,6 +67,7 @@ impl TetSimulation {
     /// initial velocity (zero at fixed nodes).
     pub fn new(mesh: TetMesh, model: Model) -> Result<Self, Error> {
         model.validate()?;
+        model.check_external_dofs(mesh.dofs())?;
         let assembler = TetAssembler::new(&mesh);
         let mass = assembler.lumped_mass(&mesh, model.density);
         let contact_dofs = mesh
@@ -158,6 +159,9 @@ impl TetSimulation {
         let t = Instant::now();
         let g = self.model.gravity;
         self.f.assign(self.mass.ex().cwise_mul(gpumat::scalar(g)));
+        if let Some(e) = &self.model.external_force {
+            e.add_to(&mut self.f);
+        }
         if let Some(r) = &rot {
             self.assembler
                 .add_corotation_forces(&self.mesh, &m, r, &mut self.f);
@@ -284,6 +288,9 @@ impl TetSimulation {
             .assemble_stiffness(&self.mesh, &m, None, &mut self.k);
         let g = self.model.gravity;
         self.f.assign(self.mass.ex().cwise_mul(gpumat::scalar(g)));
+        if let Some(e) = &self.model.external_force {
+            e.add_to(&mut self.f);
+        }
         let mut x = Matrix::zeros(self.mesh.dofs(), 1, 1);
         let t = Instant::now();
         let (iterations, residual, fallback) = solve(&self.k, &self.f, &mut x, &self.solver)?;

@@ -183,6 +183,42 @@ impl SparsityPattern {
             }
         })
     }
+    /// Splits `values` (one batch of values on this pattern) into consecutive blocks of
+    /// `rows_per_chunk` rows: `(first row, the entries of those rows)`. Parallel row passes
+    /// hand each block to one task, which then owns its rows' entries (no atomics, and the
+    /// values do not depend on the number of threads).
+    ///
+    /// ```
+    /// use gpumat::SparsityPattern;
+    /// let p = SparsityPattern::from_entries(3, 3, [(0, 0), (0, 2), (1, 1), (2, 0), (2, 2)]);
+    /// let mut v = [1, 2, 3, 4, 5];
+    /// let blocks = p.split_rows_mut(&mut v, 2);
+    /// assert_eq!(blocks.len(), 2);
+    /// assert_eq!((blocks[0].0, &*blocks[0].1), (0, &[1, 2, 3][..]));
+    /// assert_eq!((blocks[1].0, &*blocks[1].1), (2, &[4, 5][..]));
+    /// ```
+    #[track_caller]
+    pub fn split_rows_mut<'a, T>(
+        &self,
+        values: &'a mut [T],
+        rows_per_chunk: usize,
+    ) -> Vec<(usize, &'a mut [T])> {
+        assert!(
+            values.len() == self.nnz() && rows_per_chunk > 0,
+            "gpumat::SparsityPattern::split_rows_mut: {} values for {} entries, {rows_per_chunk} rows per chunk",
+            values.len(),
+            self.nnz()
+        );
+        let mut out = Vec::with_capacity(self.rows.div_ceil(rows_per_chunk));
+        let mut rest = values;
+        for r0 in (0..self.rows).step_by(rows_per_chunk) {
+            let r1 = (r0 + rows_per_chunk).min(self.rows);
+            let (head, tail) = rest.split_at_mut(self.row_ptr[r1] - self.row_ptr[r0]);
+            out.push((r0, head));
+            rest = tail;
+        }
+        out
+    }
     /// True when both are the same pattern (pointer or structure).
     pub fn same_as(self: &Arc<Self>, other: &Arc<Self>) -> bool {
         Arc::ptr_eq(self, other) || **self == **other

@@ -1,0 +1,164 @@
+//! `wind`: a uniform traction `w` (force per unit surface area, 3 parameters) on the body's
+//! surface `Gamma`. The tutorial effect of `docs/effects-tutorial.md`: everything it needs is
+//! in this file.
+//!
+//! **Physics.** A traction `t` on `Gamma` does the virtual work `int_Gamma t . delta_u ds`.
+//! With the trilinear shape functions `N_i` of the grid (`u = sum_i N_i u_i`) the consistent
+//! nodal force is
+//!
+//! ```text
+//! f_i = int_Gamma N_i t ds = A_i w        (t = w uniform),
+//! A_i = int_Gamma N_i ds = sum_{cells e of node i} w_b(e, i)    (eq. 4.2.3)
+//! ```
+//!
+//! with `w_b(e, i)` the cut cell's boundary weights ([`cutfem::cutcell::CellIntegrals`]`::
+//! boundary`, their sum over `i` is the surface area in the cell), so `sum_i A_i` is the area
+//! of the surface. The traction acts on the reference surface and does not follow the motion
+//! (a dead load): the force is independent of the state and linear in `w`,
+//!
+//! ```text
+//! f = w_x F_x + w_y F_y + w_z F_z,     F_d[i] = A_i e_d,
+//! ```
+//!
+//! which is exactly a [`cutfem::fem::ExternalForce`] with 3 basis fields. Its forward (added to
+//! `f` every step, entering the Newmark right-hand side as `dt f`), adjoint
+//! (`dJ/dw_d = dt sum_t lam_t . F_d`), tangent-linear and parameter code (`external_force`)
+//! are generic: this file only builds the basis and maps the `[wind]` section to and from the
+//! model. Neutral value: `w = 0`; a diagnosis probes it by a score test there.
+//!
+//! Unlike gravity (`M g`, proportional to the mass of each node), the wind pulls on the
+//! surface only: on a homogeneous body the two differ only in how the force is distributed,
+//! which is why `wind` is in [`super::extended_catalogue`] and not probed by a diagnosis.
+
+use super::{add_effect, toml_vec, DataContext, Effect, Probe};
+use crate::params::Param;
+use cutfem::fem::{ExternalForce, Grid, Model};
+use cutfem::scene::{Scene, WindSection};
+use gpumat::Vec3;
+use std::sync::Arc;
+
+/// The labels of the wind's coefficients in the model's external force.
+pub const LABELS: [&str; 3] = ["wind.x", "wind.y", "wind.z"];
+
+/// A uniform surface traction.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Wind;
+
+/// Per degree of freedom, its share `A_i = sum_e w_b(e, i)` of the surface area.
+pub fn node_areas(grid: &Grid) -> Vec<f64> {
+    let mut area = vec![0.0; grid.dofs()];
+    for c in &grid.cells {
+        for (dof, wb) in c.dofs.iter().zip(c.integrals.boundary) {
+            area[*dof as usize] += wb;
+        }
+    }
+    area
+}
+
+/// The basis fields `F_d[i] = A_i e_d`, `d = x, y, z`.
+pub fn basis(grid: &Grid) -> Vec<Vec<Vec3<f64>>> {
+    let area = node_areas(grid);
+    let axes = [
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(0.0, 0.0, 1.0),
+    ];
+    axes.iter()
+        .map(|&e| area.iter().map(|&a| e * a).collect())
+        .collect()
+}
+
+/// The traction of `model`'s external force (the coefficients labelled [`LABELS`]), if any.
+pub fn traction(model: &Model) -> Option<[f64; 3]> {
+    let e = model.external_force.as_ref()?;
+    let at = |l: &str| e.labels.iter().position(|x| x == l).map(|k| e.coefficients[k]);
+    Some([at(LABELS[0])?, at(LABELS[1])?, at(LABELS[2])?])
+}
+
+impl Effect for Wind {
+    fn name(&self) -> &'static str {
+        "wind"
+    }
+    fn describe(&self) -> &'static str {
+        "a uniform traction (force per unit area) on the surface"
+    }
+    fn params(&self) -> Vec<Param> {
+        vec![Param::EXTERNAL_FORCE]
+    }
+    fn probe(&self) -> Probe {
+        Probe::Score
+    }
+    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), String> {
+        scene.wind = Some(WindSection { traction: [0.0; 3] });
+        add_effect(scene, self.name());
+        Ok(())
+    }
+    fn write_back(&self, scene: &mut Scene, model: &Model) {
+        if let Some(traction) = traction(model) {
+            scene.wind = Some(WindSection { traction });
+        }
+    }
+    fn suggestion(&self, model: &Model) -> String {
+        format!(
+            "[wind]\ntraction = {}",
+            toml_vec(traction(model).unwrap_or_default())
+        )
+    }
+    fn apply_to_model(&self, scene: &Scene, grid: &Grid, model: &mut Model) -> Result<(), String> {
+        let w = scene
+            .wind
+            .as_ref()
+            .ok_or("listed in [model].effects without a [wind] section")?;
+        let force = ExternalForce {
+            basis: Arc::new(basis(grid)),
+            coefficients: w.traction.to_vec(),
+            labels: LABELS.map(String::from).to_vec(),
+        };
+        match &mut model.external_force {
+            Some(e) => e.extend(&force),
+            None => model.external_force = Some(force),
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(extra: &str) -> Result<Scene, String> {
+        let text = format!(
+            "[body]\nshape = {{ kind = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.4 }}\nresolution = 10\n\
+             [material]\nyoung = 1000.0\npoisson = 0.3\n{extra}"
+        );
+        Scene::parse(&text, std::path::Path::new("wind.toml")).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn node_areas_sum_to_the_surface_area() {
+        let grid = Grid::new(scene("").unwrap().body_sdf().unwrap()).unwrap();
+        let total: f64 = node_areas(&grid).iter().sum();
+        let exact = 4.0 * std::f64::consts::PI * 0.4 * 0.4;
+        assert!((total / exact - 1.0).abs() < 0.02, "area {total} vs {exact}");
+    }
+
+    #[test]
+    fn the_scene_section_becomes_an_external_force() {
+        let s = scene("[wind]\ntraction = [1.0, 0.0, -2.0]\n").unwrap();
+        assert!(s.effect_on("wind"));
+        let grid = Grid::new(s.body_sdf().unwrap()).unwrap();
+        let model = crate::fit::scene_model(&s, &grid).unwrap();
+        let e = model.external_force.as_ref().expect("wind on");
+        assert_eq!(e.labels, LABELS);
+        assert_eq!(traction(&model), Some([1.0, 0.0, -2.0]));
+        assert_eq!(e.basis[1][5].to_array()[1], node_areas(&grid)[5]);
+        // listed but off: no force; listed without a section: an error naming the section
+        let off = scene("[wind]\ntraction = [1.0, 0.0, 0.0]\n[model]\neffects = [\"corotation\"]\n").unwrap();
+        assert!(crate::fit::scene_model(&off, &grid)
+            .unwrap()
+            .external_force
+            .is_none());
+        let err = scene("[model]\neffects = [\"wind\"]\n").unwrap_err();
+        assert!(err.contains("[wind]"), "{err}");
+    }
+}

@@ -1,0 +1,398 @@
+//! Model diagnosis: compare the model with measurements, see where it fails, learn which
+//! physical effect is missing.
+//!
+//! [`diagnose`] runs four stages:
+//!
+//! 1. **Fit the model as given** (Levenberg-Marquardt on the scene's fitted parameters,
+//!    default `young, poisson`).
+//! 2. **Where it fails** ([`residuals`]): every observed point's residual vector at the fit,
+//!    per frame, per camera, per region of the reference surface, its direction over time, and
+//!    a model-free noise floor from local plane fits.
+//! 3. **Which effect is missing** ([`score`]): every effect of [`effects::catalogue`] that the
+//!    model lacks gets a score statistic from the adjoint gradient and the Gauss-Newton matrix
+//!    at its neutral value (or a data-driven start, or a plain switch); the best are refitted
+//!    briefly and ranked by the Bayesian information criterion.
+//! 4. **Verdict**: an effect is called missing when the data favour it strongly
+//!    (`Delta BIC < -10`), it removes at least 3% of the rms, and the model as given fails
+//!    (its rms exceeds 1.05 x the noise floor). Otherwise: nothing missing.
+
+pub mod effects;
+pub mod history;
+pub mod residuals;
+pub mod score;
+
+use crate::cost::Robust;
+use crate::cost_mesh::SurfaceCost;
+use crate::fit::observed_frames;
+use crate::observations::Observations;
+use crate::params::ParamSet;
+use cutfem::fem::Model;
+use cutfem::scene::Scene;
+use effects::{catalogue, write_back_all, DataContext, Effect};
+use residuals::{Direction, PointResidual, Region};
+use score::{BaseFit, Candidate};
+
+/// What a diagnosis works on.
+#[derive(Clone, Copy, Debug)]
+pub struct Setup<'a> {
+    /// the observations
+    pub observations: &'a Observations,
+    /// camera eyes (index = camera id; empty when unknown)
+    pub eyes: &'a [[f64; 3]],
+    /// the cameras with their intrinsics (index = camera id; empty when unknown)
+    pub cameras: &'a [crate::observe::Camera],
+    /// the loss
+    pub robust: Robust,
+    /// simulated steps (default: the scene's)
+    pub steps: Option<usize>,
+    /// reach of the surface cost (default: [`Setup::reach`])
+    pub reach: Option<f64>,
+}
+
+impl Setup<'_> {
+    /// The reach of the surface cost in a diagnosis: a quarter of the body's size (at least
+    /// two cells), so that a model far off still has a gradient towards the points.
+    pub fn reach(grid: &cutfem::fem::Grid) -> f64 {
+        let d = grid.sdf.dims;
+        let size = grid.sdf.spacing * (d[0].max(d[1]).max(d[2])) as f64;
+        (0.25 * size).max(2.0 * grid.h())
+    }
+}
+
+/// Settings of [`diagnose`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct DiagnoseParams {
+    /// Gauss-Newton iterations of the fit as given
+    pub fit_iterations: usize,
+    /// candidates refitted
+    pub refits: usize,
+    /// Gauss-Newton iterations of each refit
+    pub refit_iterations: usize,
+    /// surface regions
+    pub regions: usize,
+    /// `Delta BIC` below which an effect is called missing (positive number)
+    pub bic_threshold: f64,
+    /// the model fails when its rms exceeds this many noise floors
+    pub fail_ratio: f64,
+    /// an effect must bring the rms below this fraction of the model's
+    pub min_improvement: f64,
+}
+
+impl Default for DiagnoseParams {
+    fn default() -> Self {
+        Self {
+            fit_iterations: 12,
+            refits: 3,
+            refit_iterations: 8,
+            regions: 8,
+            bic_threshold: 10.0,
+            fail_ratio: 1.05,
+            min_improvement: 0.97,
+        }
+    }
+}
+
+/// The result of a diagnosis.
+#[derive(Clone, Debug)]
+pub struct Diagnosis {
+    /// effects of the model as given
+    pub effects: Vec<String>,
+    /// fitted parameters of the model as given
+    pub fitted: Vec<(String, f64)>,
+    /// rms at the scene's starting values
+    pub rms_start: f64,
+    /// rms of the model as given after its fit
+    pub rms: f64,
+    /// model-free estimate of the measurement noise ([`residuals::noise_floor`])
+    pub noise_floor: f64,
+    /// `(frame, rms, points)`
+    pub per_frame: Vec<(usize, f64, usize)>,
+    /// `(camera, rms, points)`
+    pub per_camera: Vec<(u32, f64, usize)>,
+    /// residuals per region of the reference surface
+    pub regions: Vec<Region>,
+    /// the residuals' direction
+    pub direction: Direction,
+    /// the frame with the largest rms
+    pub worst_frame: usize,
+    /// every point's residual at the fit
+    pub records: Vec<PointResidual>,
+    /// candidates, best first
+    pub candidates: Vec<Candidate>,
+    /// the missing effect, if any
+    pub missing_effect: Option<String>,
+    /// the verdict in plain words
+    pub verdict: String,
+    /// the fitted model as given
+    pub model: Model,
+    /// the scene with the fitted values
+    pub fitted_scene: Scene,
+    /// the fitted parameters of the model as given (with the field basis, if any)
+    pub base_params: ParamSet,
+    /// their fitted coordinates
+    pub base_x: Vec<f64>,
+    /// their coordinates at the scene's starting values
+    pub base_x_start: Vec<f64>,
+}
+
+/// The outcome of adding an effect and fitting on.
+#[derive(Clone, Debug)]
+pub struct Refined {
+    /// the scene with the effect on
+    pub scene: Scene,
+    /// the fitted model
+    pub model: Model,
+    /// the fitted values (base parameters, then the effect's)
+    pub values: Vec<(String, f64)>,
+    /// its evaluation
+    pub eval: crate::problem::Evaluation,
+}
+
+/// Adds the candidate effect `name` of a diagnosis to the model and refits, as a user does
+/// after the verdict: the scene's own starting values for the base parameters (the wrong
+/// model's fit may have wandered off), the effect's values from the short refit, then
+/// `iterations` iterations.
+pub fn add_and_refit(setup: &Setup, d: &Diagnosis, name: &str, iterations: usize) -> Result<Refined, String> {
+    let c = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == name)
+        .ok_or_else(|| format!("`{name}` is not a candidate of this diagnosis"))?;
+    let scene = c
+        .scene
+        .clone()
+        .ok_or_else(|| format!("`{name}` could not be probed"))?;
+    let e = effects::effect(name).ok_or_else(|| format!("unknown effect `{name}`"))?;
+    let (mut problem, x0) =
+        score::extended_problem_at(setup, &d.base_params, &d.base_x, &scene, &e.params())?;
+    let nb = d.base_x_start.len();
+    let start = if c.x.len() == x0.len() && nb <= x0.len() {
+        let mut s = d.base_x_start.clone();
+        s.extend_from_slice(&c.x[nb..]);
+        s
+    } else {
+        x0
+    };
+    let (x, eval) = score::fit_problem(&mut problem, &start, iterations)?;
+    let model = problem.model_at(&x);
+    let values = problem.params.values(&model);
+    Ok(Refined {
+        scene,
+        model,
+        values,
+        eval,
+    })
+}
+
+/// Progress messages of a diagnosis (stage, done, total).
+pub type Progress<'a> = &'a mut dyn FnMut(&str, usize, usize);
+
+/// Diagnoses `scene` (the model as given) against the observations of `setup`, fitting
+/// `params` (module docs).
+pub fn diagnose(
+    scene: &Scene,
+    setup: &Setup,
+    params: ParamSet,
+    settings: &DiagnoseParams,
+    progress: Progress,
+) -> Result<Diagnosis, String> {
+    let on: Vec<Box<dyn Effect>> = catalogue()
+        .into_iter()
+        .filter(|e| scene.effect_on(e.name()))
+        .collect();
+    let off: Vec<Box<dyn Effect>> = catalogue()
+        .into_iter()
+        .filter(|e| !scene.effect_on(e.name()))
+        .collect();
+    let total = 3 + off.len() + settings.refits;
+    progress("fit the model as given", 0, total);
+    let mut problem = score::diagnosis_problem(scene, setup, params)?;
+    let reach = setup.reach.unwrap_or_else(|| Setup::reach(&problem.sim.grid));
+    let setup = &Setup {
+        reach: Some(reach),
+        ..*setup
+    };
+    let x0 = problem.x0();
+    let rms_start = problem.evaluate(&x0).map_err(|e| e.to_string())?.rms();
+    let (x, eval) = score::fit_problem(&mut problem, &x0, settings.fit_iterations)?;
+    let model = problem.model_at(&x);
+    let mut fitted_scene = scene.clone();
+    write_back_all(&mut fitted_scene, &model);
+    let base = BaseFit {
+        scene: fitted_scene.clone(),
+        x,
+        x_start: x0.clone(),
+        params: problem.params.clone(),
+        eval,
+    };
+
+    progress("residuals", 1, total);
+    let steps = setup.steps.unwrap_or(scene.time.steps);
+    let cost = SurfaceCost::new(
+        &problem.sim.grid,
+        observed_frames(setup.observations, setup.eyes),
+        setup.robust,
+    )?
+    .with_reach(reach);
+    let records =
+        residuals::point_residuals(&mut problem.sim, model.clone(), steps, &cost, setup.observations)?;
+    let h = problem.sim.grid.h();
+    let noise_floor = residuals::noise_floor(setup.observations, setup.cameras, setup.eyes, 2.0 * h);
+    let mut frames: Vec<usize> = records.iter().map(|r| r.frame).collect();
+    frames.dedup();
+    let per_frame: Vec<(usize, f64, usize)> = frames
+        .iter()
+        .map(|&f| {
+            let (r, n) = residuals::rms(records.iter().filter(|r| r.frame == f));
+            (f, r, n)
+        })
+        .collect();
+    let mut cams: Vec<u32> = records.iter().filter_map(|r| r.camera).collect();
+    cams.sort_unstable();
+    cams.dedup();
+    let per_camera = cams
+        .iter()
+        .map(|&c| {
+            let (r, n) = residuals::rms(records.iter().filter(|r| r.camera == Some(c)));
+            (c, r, n)
+        })
+        .collect();
+    let verts: Vec<[f64; 3]> = cost.surface().mesh.vertices.clone();
+    let centers = residuals::kmeans(&verts, settings.regions);
+    let regions = residuals::regions(&records, &centers);
+    let direction = residuals::direction(&records);
+    let worst_frame = per_frame
+        .iter()
+        .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
+        .map_or(0, |p| p.0);
+    let rms = residuals::rms(records.iter()).0;
+
+    // which effect is missing
+    let data = DataContext {
+        observations: setup.observations,
+        spacing: h,
+        reference: &verts,
+    };
+    let mut candidates: Vec<Candidate> = Vec::new();
+    for (i, e) in off.iter().enumerate() {
+        progress(&format!("score {}", e.name()), 2 + i, total);
+        candidates.push(score::probe(setup, &base, e.as_ref(), &data));
+    }
+    let n = records.len().max(1) as f64;
+    let rank = |c: &Candidate| c.score - c.params.len() as f64 * n.ln();
+    candidates.sort_by(|a, b| rank(b).total_cmp(&rank(a)).then(a.effect.cmp(&b.effect)));
+    // refit the candidates whose score beats the BIC penalty, best first
+    for i in 0..settings.refits.min(candidates.len()) {
+        if candidates[i].error.is_some() || rank(&candidates[i]) <= 0.0 {
+            continue;
+        }
+        // a candidate predicted far worse than one already confirmed cannot win
+        let best = candidates[..i]
+            .iter()
+            .filter_map(|c| c.rms_after)
+            .fold(f64::INFINITY, f64::min);
+        if candidates[i].predicted_rms > 2.0 * best {
+            continue;
+        }
+        progress(
+            &format!("refit with {}", candidates[i].effect),
+            2 + off.len() + i,
+            total,
+        );
+        let e = off
+            .iter()
+            .find(|e| e.name() == candidates[i].effect)
+            .expect("listed");
+        score::refit(
+            setup,
+            &base,
+            e.as_ref(),
+            &mut candidates[i],
+            settings.refit_iterations,
+        );
+    }
+    // refitted candidates by Delta BIC, then the rest by score
+    candidates.sort_by(|a, b| match (a.delta_bic, b.delta_bic) {
+        (Some(x), Some(y)) => x.total_cmp(&y),
+        (Some(_), None) => std::cmp::Ordering::Less,
+        (None, Some(_)) => std::cmp::Ordering::Greater,
+        (None, None) => rank(b).total_cmp(&rank(a)),
+    });
+    progress("verdict", total, total);
+    let fails = rms > settings.fail_ratio * noise_floor;
+    let missing = candidates.first().filter(|c| {
+        fails
+            && c.delta_bic.is_some_and(|d| d < -settings.bic_threshold)
+            && c.rms_after.is_some_and(|r| r < settings.min_improvement * rms)
+    });
+    let missing_effect = missing.map(|c| c.effect.clone());
+    let verdict = verdict(missing, rms, noise_floor, fails, &candidates);
+    Ok(Diagnosis {
+        effects: on.iter().map(|e| e.name().to_string()).collect(),
+        fitted: problem.params.values(&model),
+        rms_start,
+        rms,
+        noise_floor,
+        per_frame,
+        per_camera,
+        regions,
+        direction,
+        worst_frame,
+        records,
+        candidates,
+        missing_effect,
+        verdict,
+        model,
+        fitted_scene,
+        base_params: base.params,
+        base_x: base.x,
+        base_x_start: base.x_start,
+    })
+}
+
+/// The verdict in plain words.
+fn verdict(
+    missing: Option<&Candidate>,
+    rms: f64,
+    floor: f64,
+    fails: bool,
+    candidates: &[Candidate],
+) -> String {
+    match missing {
+        Some(c) => format!(
+            "missing: {}. rms {} -> {} after adding it (noise floor {}). Add `{}` to [model].effects{}",
+            c.effect,
+            effects::short(rms),
+            effects::short(c.rms_after.unwrap_or(rms)),
+            effects::short(floor),
+            c.effect,
+            if c.suggestion.starts_with('(') {
+                format!(" {}", c.suggestion)
+            } else {
+                format!(" and this section (suggested values):\n{}", c.suggestion)
+            }
+        ),
+        None if !fails => format!(
+            "nothing missing: rms {} is within {:.2}x the noise floor {}",
+            effects::short(rms),
+            rms / floor.max(f64::MIN_POSITIVE),
+            effects::short(floor)
+        ),
+        None => match candidates.first() {
+            Some(c) => format!(
+                "nothing missing from the catalogue: rms {} exceeds the noise floor {}, but the best \
+                 candidate ({}) only reaches {}; the misfit may come from an effect outside the \
+                 catalogue",
+                effects::short(rms),
+                effects::short(floor),
+                c.effect,
+                c.rms_after.map_or("-".into(), effects::short)
+            ),
+            None => format!(
+                "nothing missing from the catalogue: every effect is on; rms {} vs noise floor {}",
+                effects::short(rms),
+                effects::short(floor)
+            ),
+        },
+    }
+}

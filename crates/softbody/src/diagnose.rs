@@ -1,0 +1,274 @@
+//! `softbody diagnose SCENE --observations OBS.csv [--out DIR] [--json]`: fits the model as
+//! given, shows where it fails and which effect is missing (`adjoint::diagnosis`).
+//!
+//! The report folder gets `diagnosis.json` (interface.md fields plus `verdict`, `per_camera`,
+//! `direction`, `fitted`, `files`) and the pictures of `diagnose_report`. Every run is appended
+//! to the scene's history file (`SCENE.history.jsonl`), whose rms over the user's successive
+//! models is plotted.
+
+use crate::problem_args::{Loaded, ProblemArgs};
+use crate::progress;
+use adjoint::cost::Robust;
+use adjoint::diagnosis::history::{self, Entry};
+use adjoint::diagnosis::{diagnose, DiagnoseParams, Diagnosis, Setup};
+use adjoint::fit::{cameras_path, read_cameras, CostKind};
+use adjoint::observations::Observations;
+use adjoint::observe::Camera;
+use adjoint::params::ParamSet;
+use cutfem::scene::Scene;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Arguments of `diagnose`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub problem: ProblemArgs,
+    /// Report folder (default: out/<scene>-diagnose).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Gauss-Newton iterations of the fit as given.
+    #[arg(long, default_value_t = 12)]
+    pub iterations: usize,
+    /// Candidates confirmed by a short refit.
+    #[arg(long, default_value_t = 3)]
+    pub refits: usize,
+    /// Print exactly one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// A diagnosis to run and report.
+pub struct Job<'a> {
+    /// the scene (the model as given)
+    pub scene: &'a Scene,
+    /// its file (the history file lies beside it)
+    pub scene_path: &'a Path,
+    /// the observations
+    pub observations: &'a Observations,
+    /// camera eyes
+    pub eyes: &'a [[f64; 3]],
+    /// cameras with intrinsics
+    pub cameras: &'a [Camera],
+    /// fitted parameters of the model as given
+    pub params: ParamSet,
+    /// settings
+    pub settings: DiagnoseParams,
+    /// report folder
+    pub out: &'a Path,
+    /// no progress bar
+    pub quiet: bool,
+    /// history entry's command
+    pub command: &'a str,
+}
+
+/// Runs a diagnosis, writes its report and history entry; returns it and its JSON.
+pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
+    let t0 = Instant::now();
+    std::fs::create_dir_all(job.out).map_err(|e| format!("{}: {e}", job.out.display()))?;
+    let setup = Setup {
+        observations: job.observations,
+        eyes: job.eyes,
+        cameras: job.cameras,
+        robust: Robust::Squared,
+        steps: None,
+        reach: None,
+    };
+    let bar = progress::bar(1, "diagnose", job.quiet);
+    let d = diagnose(
+        job.scene,
+        &setup,
+        job.params,
+        &job.settings,
+        &mut |stage, done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+            bar.set_message(stage.to_string());
+        },
+    )?;
+    bar.finish_and_clear();
+
+    let hist_path = history::history_path(job.scene_path);
+    let mut entry = Entry::now(job.command, d.effects.clone(), d.fitted.clone(), d.rms);
+    entry.noise_floor = Some(d.noise_floor);
+    entry.missing_effect = d.missing_effect.clone();
+    history::append(&hist_path, &entry)?;
+    let entries = history::read(&hist_path)?;
+
+    // pictures
+    let mut sim = adjoint::fit::scene_simulation(job.scene)?;
+    let (reference, worst) =
+        adjoint::diagnosis::residuals::surfaces_at(&mut sim, d.model.clone(), d.worst_frame)?;
+    let gravity = job
+        .scene
+        .effect_on("gravity")
+        .then(|| d.model.gravity.to_array())
+        .filter(|g| g.iter().any(|v| *v != 0.0));
+    let inputs = crate::diagnose_report::PictureInputs {
+        reference: &reference,
+        worst: &worst,
+        gravity,
+        history: &entries,
+    };
+    let pictures = crate::diagnose_report::write_pictures(job.out, &d, &inputs)?;
+    let summary = summary_json(&d, &pictures, &hist_path, t0.elapsed().as_secs_f64());
+    let path = job.out.join("diagnosis.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok((d, summary))
+}
+
+/// The JSON of a diagnosis (interface.md fields first).
+pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: &Path, seconds: f64) -> Value {
+    let candidates: Vec<Value> = d
+        .candidates
+        .iter()
+        .map(|c| {
+            json!({
+                "effect": c.effect,
+                "score": finite(c.score),
+                "rms_after": c.rms_after,
+                "predicted_rms": c.predicted_rms,
+                "delta_bic": c.delta_bic,
+                "probe": c.probe,
+                "parameters": c.params,
+                "values": crate::fit::values_json(&c.values),
+                "suggestion": c.suggestion,
+                "error": c.error,
+            })
+        })
+        .collect();
+    json!({
+        "rms": d.rms,
+        "noise_floor": d.noise_floor,
+        "per_frame": d.per_frame.iter().map(|(f, r, n)| json!({"frame": f, "rms": r, "points": n})).collect::<Vec<_>>(),
+        "regions": d.regions,
+        "candidates": candidates,
+        "missing_effect": d.missing_effect,
+        "verdict": d.verdict,
+        "effects": d.effects,
+        "fitted": crate::fit::values_json(&d.fitted),
+        "rms_start": d.rms_start,
+        "per_camera": d.per_camera.iter().map(|(c, r, n)| json!({"camera": c, "rms": r, "points": n})).collect::<Vec<_>>(),
+        "worst_frame": d.worst_frame,
+        "direction": d.direction,
+        "history": history,
+        "files": pictures,
+        "seconds": seconds,
+    })
+}
+
+fn finite(x: f64) -> Value {
+    if x.is_finite() {
+        json!(x)
+    } else {
+        Value::Null
+    }
+}
+
+/// Runs `diagnose`.
+pub fn run(args: Args) -> Result<(), String> {
+    let Loaded {
+        scene,
+        params,
+        kind,
+        observations,
+        eyes,
+        ..
+    } = args.problem.load()?;
+    if kind != CostKind::Surface {
+        return Err("--cost: diagnose measures distances to the simulated surface (--cost surface)".into());
+    }
+    if observations.is_empty() {
+        return Err(format!(
+            "{}: no observed points",
+            args.problem.observations.display()
+        ));
+    }
+    let cameras = match &args.problem.cameras {
+        Some(p) => read_cameras(p)?,
+        None => {
+            let p = cameras_path(&args.problem.observations);
+            if p.exists() {
+                read_cameras(&p)?
+            } else {
+                Vec::new()
+            }
+        }
+    };
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| crate::simulate::default_out(&args.problem.scene, "diagnose"));
+    let settings = DiagnoseParams {
+        fit_iterations: args.iterations,
+        refits: args.refits,
+        ..DiagnoseParams::default()
+    };
+    let (d, summary) = run_job(Job {
+        scene: &scene,
+        scene_path: &args.problem.scene,
+        observations: &observations,
+        eyes: &eyes,
+        cameras: &cameras,
+        params,
+        settings,
+        out: &out,
+        quiet: args.json,
+        command: "diagnose",
+    })?;
+    if args.json {
+        println!("{summary}");
+    } else {
+        print_text(&d);
+        eprintln!("report: {}", out.display());
+    }
+    Ok(())
+}
+
+/// The diagnosis for a reader, on stderr.
+pub fn print_text(d: &Diagnosis) {
+    eprintln!(
+        "model as given ({}): rms {:.4e} (start {:.4e}), noise floor {:.4e}",
+        d.effects.join(", "),
+        d.rms,
+        d.rms_start,
+        d.noise_floor
+    );
+    let worst = d.per_frame.iter().find(|f| f.0 == d.worst_frame);
+    if let Some((f, r, _)) = worst {
+        eprintln!("worst frame {f}: rms {r:.4e}");
+    }
+    if let Some(r) = d.regions.iter().max_by(|a, b| a.rms.total_cmp(&b.rms)) {
+        eprintln!(
+            "worst region {} around ({:.2}, {:.2}, {:.2}): rms {:.4e}, mean {:+.3e}",
+            r.id, r.center[0], r.center[1], r.center[2], r.rms, r.mean
+        );
+    }
+    let p = d.direction.principal;
+    eprintln!(
+        "residual direction ({:.2}, {:.2}, {:.2}) carries {:.0}% of it; a uniform shift explains {:.0}%",
+        p[0],
+        p[1],
+        p[2],
+        100.0 * d.direction.principal_share,
+        100.0 * d.direction.shift_share
+    );
+    eprintln!(
+        "{:<18} {:>12} {:>12} {:>12} {:>12}",
+        "candidate", "score", "predicted", "rms after", "dBIC"
+    );
+    for c in &d.candidates {
+        let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4e}"));
+        eprintln!(
+            "{:<18} {:>12.4e} {:>12.4e} {:>12} {:>12}",
+            c.effect,
+            c.score,
+            c.predicted_rms,
+            opt(c.rms_after),
+            c.delta_bic.map_or("-".to_string(), |v| format!("{v:.1}"))
+        );
+    }
+    eprintln!("{}", d.verdict);
+}
