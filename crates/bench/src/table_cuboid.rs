@@ -48,7 +48,8 @@ pub struct CuboidRow {
     pub grid_assembly_s: f64,
     /// tets: seconds per step in assembly
     pub tet_assembly_s: f64,
-    /// grid: seconds per step in rotations + stiffness values (the thesis' "assembly")
+    /// grid: seconds per step in rotations + stiffness values (the thesis' "assembly"), with the
+    /// corotation and body forces and the upper blocks of A computed in the same sweeps
     pub grid_stiffness_s: f64,
     /// tets: seconds per step in rotations + stiffness values
     pub tet_stiffness_s: f64,

@@ -8,14 +8,17 @@
 //! depend on the thread count.
 //!
 //! A step's assembly is three sweeps: one over the cells ([`Assembler::rotations_and_cell_forces`]:
-//! rotation `R_e` and the eight corotation corner forces while the cell's blocks are at hand),
-//! one over the rows (the upper-triangle blocks and the force `f_r = m_r g + sum` of the
-//! corner forces of the node), then, after the ground forces, the Newmark pass
-//! ([`Assembler::newmark`]), which completes `K` (each lower block is the transpose of its
-//! mirror) while it writes `A` and `b`. Every pass works on fixed chunks of rows or cells,
-//! writes each value from exactly one task and sums in a fixed order, so the results are
-//! bit-identical whatever the number of threads. The hot loops are written once over
-//! [`gpumat::simd::Simd4`] and run in AVX2 registers where the CPU has them (same values).
+//! rotation `R_e`, four cells at a time, and the eight corotation corner forces while the
+//! cell's blocks are at hand), one over the rows (the upper-triangle blocks of `K`, the same
+//! blocks of the Newmark matrix `A` while they are in cache, and the force `f_r = m_r g + sum`
+//! of the corner forces of the node), then, after the ground forces, the Newmark pass
+//! (`Assembler::newmark`), which completes `K` and `A` (each lower block is the transpose of
+//! its mirror) while it writes `b`. Every pass works on fixed chunks of rows or cells, writes
+//! each value from exactly one task and sums in a fixed order, so the results are
+//! bit-identical whatever the number of threads (and equal to those of the plain passes:
+//! [`Assembler::assemble_stiffness`], [`crate::fem::sim::newmark_system`]). The hot loops are
+//! written once over [`gpumat::simd::Simd4`] and run in AVX2 registers where the CPU has them
+//! (same values).
 //!
 //! Element block (e, i, j): `R_e K_ij(e) R_e^T` (corotation, eq. 4.4.7/4.4.10) plus, for a
 //! Dirichlet cell, the Nitsche terms (eq. 4.4.16-4.4.17), added after the rotation as the
@@ -28,12 +31,14 @@ mod newmark;
 
 pub use cells::CellWork;
 pub(crate) use newmark::fill_newmark;
+use newmark::Coefficients;
 
 use super::element::{lanes3, padded_transpose, rotate_add, PaddedBlock, StiffnessTables, OPPOSITE};
 pub use super::element::{rotate_block, ElementBlocks};
 use super::grid::Grid;
+use super::model::Model;
 use gpumat::simd::{dispatch, Kernel, Simd4};
-use gpumat::{Mat3, Matrix, SparseMatrix, SparsityPattern, Vec3};
+use gpumat::{Mat3, Matrix, Scalar, SparseMatrix, SparsityPattern, Vec3};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -42,6 +47,18 @@ use std::sync::Arc;
 pub(crate) const ROW_CHUNK: usize = 64;
 /// Cells per task of the parallel cell pass.
 const CELL_CHUNK: usize = 64;
+
+/// Runs `f` on every work item, on the rayon pool when `parallel`, else in order on the
+/// calling thread (small problems: waking the pool costs more than their work, as for
+/// gpumat's fused loops below [`gpumat::expr::PAR_THRESHOLD`]). Each item writes its own
+/// values, so they do not depend on it.
+fn for_each_item<T: Send>(parallel: bool, items: Vec<T>, f: impl Fn(T) + Send + Sync) {
+    if parallel {
+        items.into_par_iter().for_each(f);
+    } else {
+        items.into_iter().for_each(f);
+    }
+}
 
 /// The values of a sparse matrix shared by parallel tasks that write disjoint entries
 /// ([`Assembler::assemble_stiffness`]).
@@ -230,10 +247,11 @@ impl Assembler {
     }
 
     /// A step's stiffness values and forces in one row sweep: the blocks of `k` on and above
-    /// the diagonal (as [`Assembler::assemble_stiffness`]) and `f_r = m_r g + sum` of the
-    /// corner forces of node `r` (its cells in [`Assembler::cells_of`] order). The blocks
-    /// below the diagonal are left to the step's Newmark pass ([`Assembler::newmark`]), which
-    /// mirrors them as it reads them. `corotation`: the rotations and the cell data of
+    /// the diagonal (as [`Assembler::assemble_stiffness`]), the same blocks of the Newmark
+    /// matrix `a` of `model` (while the row's blocks are in cache) and `f_r = m_r g + sum` of
+    /// the corner forces of node `r` (its cells in [`Assembler::cells_of`] order). The blocks
+    /// below the diagonal and `b` are left to the step's Newmark pass ([`Assembler::newmark`]),
+    /// which mirrors them. `corotation`: the rotations and the cell data of
     /// [`Assembler::rotations_and_cell_forces`] (`None`: no corotation, gravity only).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn assemble_upper_with_forces(
@@ -248,6 +266,8 @@ impl Assembler {
         mass: &Matrix<f64>,
         gravity: Vec3<f64>,
         f: &mut Matrix<Vec3<f64>>,
+        model: &Model,
+        a: &mut SparseMatrix<Mat3<f64>>,
     ) {
         let cells = Cells {
             grid,
@@ -261,17 +281,19 @@ impl Assembler {
             mass: mass.as_slice(),
             gravity,
             cell_forces: corotation.map(|(_, w)| &w.forces[..]),
+            newmark: Coefficients::new(model),
         };
-        self.assemble_values(&cells, k, Some((forces, f.as_mut_slice())));
+        assert!(
+            Arc::ptr_eq(a.pattern(), &self.pattern) && a.batches() == 1,
+            "cutfem: Newmark matrix has a foreign pattern"
+        );
+        let step = (forces, f.as_mut_slice(), a.batch_values_mut(0));
+        self.assemble_values(&cells, k, Some(step));
     }
 
-    /// The upper blocks (and the forces, when given; else the lower blocks too, by mirroring).
-    fn assemble_values(
-        &self,
-        c: &Cells<'_>,
-        k: &mut SparseMatrix<Mat3<f64>>,
-        forces: Option<(Forces<'_>, &mut [Vec3<f64>])>,
-    ) {
+    /// The upper blocks (and a step's forces and upper Newmark blocks, when given; else the
+    /// lower blocks too, by mirroring).
+    fn assemble_values(&self, c: &Cells<'_>, k: &mut SparseMatrix<Mat3<f64>>, step: Option<StepOutput<'_>>) {
         assert!(
             Arc::ptr_eq(k.pattern(), &self.pattern),
             "cutfem: stiffness matrix has a foreign pattern"
@@ -287,43 +309,61 @@ impl Assembler {
         // do the Nitsche terms): compute the upper triangle, mirror the rest.
         let values = k.batch_values_mut(0);
         let chunks = self.pattern.split_rows_mut(values, ROW_CHUNK);
-        let forces_given = forces.is_some();
-        match forces {
-            Some((fo, f)) => {
-                assert!(
-                    f.len() == n && fo.mass.len() == n,
-                    "cutfem: forces of another size"
-                );
-                assert!(
-                    fo.cell_forces.map_or(true, |cf| cf.len() == cells),
-                    "cutfem: corner forces per cell"
-                );
-                chunks
-                    .into_par_iter()
-                    .zip(f.par_chunks_mut(ROW_CHUNK))
-                    .for_each(|((r0, vals), fc)| {
-                        self.upper_rows(c, r0, vals);
-                        for (o, out) in fc.iter_mut().enumerate() {
-                            *out = self.node_force(&fo, r0 + o);
-                        }
-                    });
-            }
-            None => chunks
-                .into_par_iter()
-                .for_each(|(r0, vals)| self.upper_rows(c, r0, vals)),
-        }
-        if forces_given {
-            return; // a step: the Newmark pass mirrors
-        }
-        // In place, without a buffer: each lower entry from its mirror above the diagonal.
+        let parallel = self.parallel();
+        let Some((fo, f, a)) = step else {
+            for_each_item(parallel, chunks, |(r0, vals)| self.upper_rows(c, r0, vals));
+            self.mirror_lower(values);
+            return;
+        };
+        assert!(
+            f.len() == n && fo.mass.len() == n,
+            "cutfem: forces of another size"
+        );
+        assert!(
+            fo.cell_forces.map_or(true, |cf| cf.len() == cells),
+            "cutfem: corner forces per cell"
+        );
         let rp = self.pattern.row_ptr();
+        let items: Vec<_> = chunks
+            .into_iter()
+            .zip(self.pattern.split_rows_mut(a, ROW_CHUNK))
+            .zip(f.chunks_mut(ROW_CHUNK))
+            .collect();
+        for_each_item(parallel, items, |(((r0, vals), (_, av)), fc)| {
+            self.upper_rows(c, r0, vals);
+            gpumat::simd::with_avx2(
+                #[inline(always)]
+                || {
+                    let (base, nw) = (rp[r0], &fo.newmark);
+                    for (o, out) in fc.iter_mut().enumerate() {
+                        let r = r0 + o;
+                        *out = self.node_force(&fo, r);
+                        let d = self.diag[r] as usize;
+                        for kk in d..rp[r + 1] {
+                            let m = if kk == d { nw.diagonal(fo.mass[r]) } else { nw.off };
+                            av[kk - base] = m.add(vals[kk - base].scale(nw.ck));
+                        }
+                    }
+                },
+            )
+        });
+    }
+
+    /// Whether the passes of this pattern run on the rayon pool (see [`for_each_item`]).
+    fn parallel(&self) -> bool {
+        self.pattern.nnz() >= gpumat::expr::PAR_THRESHOLD
+    }
+
+    /// Each block below the diagonal of `values` from its mirror above it, in place.
+    fn mirror_lower(&self, values: &mut [Mat3<f64>]) {
+        let (n, rp) = (self.pattern.rows(), self.pattern.row_ptr());
         let out = EntryWriter(values.as_mut_ptr(), values.len());
-        (0..n.div_ceil(ROW_CHUNK)).into_par_iter().for_each(|ci| {
+        for_each_item(self.parallel(), (0..n.div_ceil(ROW_CHUNK)).collect(), |ci| {
             for r in ci * ROW_CHUNK..((ci + 1) * ROW_CHUNK).min(n) {
                 for kk in rp[r]..self.diag[r] as usize {
                     // SAFETY: the `kk` are distinct entries below the diagonal, each written by
                     // one task; their mirrors lie on or above it, written in the finished pass
-                    // above and only read here, so no entry is both read and written here.
+                    // before this one and only read here, so no entry is both read and written.
                     unsafe { out.write(kk, out.read(self.mirror[kk] as usize).transpose()) };
                 }
             }
@@ -452,7 +492,7 @@ impl Assembler {
             }
         }
         Mat3 {
-            m: acc.map(|row| lanes3(s, row)),
+            m: [lanes3(s, acc[0]), lanes3(s, acc[1]), lanes3(s, acc[2])],
         }
     }
 
@@ -484,9 +524,14 @@ struct Cells<'a> {
     scale: Option<&'a [f64]>,
 }
 
-/// What the node forces of [`Assembler::assemble_with_forces`] read.
+/// What a step's row sweep reads for the node forces and Newmark blocks, and the forces and
+/// values of `A` it writes.
+type StepOutput<'a> = (Forces<'a>, &'a mut [Vec3<f64>], &'a mut [Mat3<f64>]);
+
+/// What the node forces and Newmark blocks of [`Assembler::assemble_upper_with_forces`] read.
 struct Forces<'a> {
     mass: &'a [f64],
     gravity: Vec3<f64>,
     cell_forces: Option<&'a [[Vec3<f64>; 8]]>,
+    newmark: Coefficients,
 }

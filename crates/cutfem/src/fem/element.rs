@@ -360,7 +360,7 @@ pub fn lame(e: f64, nu: f64) -> (f64, f64) {
     (lambda, mu)
 }
 
-/// `R B R^T` with plain loops (the operation order that [`rotate_block_rows`] reproduces).
+/// `R B R^T` with plain loops (the operation order that [`rotate_add`] reproduces).
 #[inline(always)]
 pub fn rotate_block(r: &Mat3<f64>, b: &Mat3<f64>) -> Mat3<f64> {
     let (r, b) = (&r.m, &b.m);
@@ -461,7 +461,8 @@ pub fn corotation_forces<S: Simd4>(
 ) -> [Vec3<f64>; 8] {
     let load3 = |v: &PaddedBlock| [s.load(&v[0]), s.load(&v[1]), s.load(&v[2])];
     let m = &r.m;
-    let rows = [0, 1, 2].map(|p| s.set([m[p][0], m[p][1], m[p][2], 0.0]));
+    let row = |p: usize| s.set([m[p][0], m[p][1], m[p][2], 0.0]);
+    let rows = [row(0), row(1), row(2)];
     let mut d = [[0.0; 3]; 8];
     for j in 0..8 {
         let xj = x[j].to_array();
@@ -480,4 +481,89 @@ pub fn corotation_forces<S: Simd4>(
         f[i] = Vec3::new(-rs[0] * sc, -rs[1] * sc, -rs[2] * sc);
     }
     f
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gpumat::simd::Portable;
+
+    /// Deterministic values in `[-1, 1)` with rounding in every product.
+    fn values(seed: u64) -> impl FnMut() -> f64 {
+        let mut s = seed;
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        }
+    }
+
+    fn mat(next: &mut impl FnMut() -> f64) -> Mat3<f64> {
+        Mat3::from_rows(std::array::from_fn(|_| std::array::from_fn(|_| next())))
+    }
+
+    fn bits(m: &Mat3<f64>) -> [[u64; 3]; 3] {
+        m.m.map(|r| r.map(f64::to_bits))
+    }
+
+    /// The vector kernels on every backend of this CPU give the bits of the textbook loops.
+    fn check_kernels<S: Simd4>(s: S) {
+        let mut next = values(7);
+        for _ in 0..50 {
+            let (r, b, n) = (mat(&mut next), mat(&mut next), mat(&mut next));
+            let mut acc = [s.splat(0.0); 3];
+            rotate_add(s, &mut acc, &r, &padded_transpose(&r), &b, Some(&n));
+            let got = Mat3::from_rows(acc.map(|v| lanes3(s, v)));
+            assert_eq!(bits(&got), bits(&(Mat3::default() + (rotate_block(&r, &b) + n))));
+        }
+        // corotation forces against the plain formula
+        let x = corner_offsets(0.25);
+        let k: [[Mat3<f64>; 8]; 8] = std::array::from_fn(|_| std::array::from_fn(|_| mat(&mut next)));
+        let kc = k.map(|row| row.map(|b| padded_transpose(&b)));
+        let r = mat(&mut next);
+        let got = corotation_forces(s, &kc, &r, &padded_transpose(&r), &x, 1.5);
+        for i in 0..8 {
+            let mut sum = Vec3::default();
+            for j in 0..8 {
+                if i ^ j != OPPOSITE {
+                    sum = sum + k[i][j] * (r.transpose() * x[j] - x[j]);
+                }
+            }
+            assert_eq!(
+                got[i].to_array().map(f64::to_bits),
+                (-(r * sum) * 1.5).to_array().map(f64::to_bits)
+            );
+        }
+        // four rotations at once, with a collapsed cell (identity) among them
+        let mut u = [[Vec3::default(); 8]; 4];
+        for (l, ul) in u.iter_mut().enumerate() {
+            for c in ul.iter_mut() {
+                *c = if l == 2 {
+                    Vec3::splat(0.0)
+                } else {
+                    Vec3::new(next(), next(), next()) * 0.05
+                };
+            }
+        }
+        u[3] = [Vec3::new(-0.25, 0.0, 0.0); 8];
+        for q in [1, 3, 5, 7] {
+            u[3][q] = Vec3::new(-0.5, 0.0, 0.0); // flattened along x: det F = 0
+        }
+        let got = cell_rotations4(s, &u, 0.25, POLAR_ITERATIONS);
+        for l in 0..4 {
+            let want = polar_rotation(deformation_gradient(&u[l], 0.25), POLAR_ITERATIONS);
+            assert_eq!(bits(&got[l]), bits(&want), "cell {l}");
+        }
+        assert_eq!(got[3], Mat3::identity());
+    }
+
+    #[test]
+    fn vector_kernels_match_the_plain_loops_bitwise() {
+        check_kernels(Portable);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(s) = gpumat::simd::Avx2::detect() {
+            check_kernels(s);
+        }
+    }
 }

@@ -9,8 +9,10 @@
 //! `v' = (u' - u)/(theta dt) - (1-theta)/theta v`.
 //!
 //! (The thesis prints `+ (1-theta) dt K` in `b`; deriving the theta-scheme for
-//! `M v' + D v + K u = f`, `u' = v` gives the minus sign used here.) `A` and `b` are each one
-//! fused gpumat expression; `A u' = b` is solved by preconditioned CG warm-started at
+//! `M v' + D v + K u = f`, `u' = v` gives the minus sign used here.) `A` and `b` are filled in
+//! one fused pass over the rows of `K` ([`newmark_system`]; in a grid step the stiffness sweep
+//! writes the upper blocks of `A` while they are in cache and the Newmark pass the rest, see
+//! [`super::assembly`]); `A u' = b` is solved by preconditioned CG warm-started at
 //! `u + dt v` (4.4.18), falling back to a sparse Cholesky factorization when CG fails; the
 //! preconditioner (block-Jacobi, block IC(0) or a reused rest-state Cholesky factor) is chosen
 //! in [`SolverSettings`] (see [`super::solver`]).
@@ -44,7 +46,8 @@ pub struct StepInfo {
     /// seconds in assembly (rotations, stiffness, corotation forces, A and b)
     pub assembly_s: f64,
     /// the part of `assembly_s` spent on rotations and stiffness values (the thesis' "matrix
-    /// assembly")
+    /// assembly"; in a grid step the same sweeps also compute the corotation and body forces
+    /// and the upper blocks of `A`, counted here)
     pub stiffness_s: f64,
     /// seconds in collision forces
     pub collision_s: f64,
@@ -234,12 +237,13 @@ impl Simulation {
         (rot, blocks)
     }
 
-    /// Stiffness values and elastic forces for the current state: `K` on and above the
-    /// diagonal into `self.k` (the Newmark pass of [`Simulation::assemble_system`] mirrors the
-    /// rest), body + corotation forces into `self.f`, in one sweep over the cells (rotations and
-    /// corner forces) and one over the rows (upper blocks and node forces), reusing the buffers
-    /// of the last step. Returns the seconds spent, all of it counted as rotations and
-    /// stiffness (the corner forces are computed in the same sweeps).
+    /// Stiffness values and elastic forces for the current state: the blocks of `K` (and of the
+    /// Newmark matrix `A`) on and above the diagonal into `self.k` (`self.a`), body + corotation
+    /// forces into `self.f`, in one sweep over the cells (rotations and corner forces) and one
+    /// over the rows, reusing the buffers of the last step; the Newmark pass of
+    /// [`Simulation::assemble_system`] completes `K` and `A`. Returns the seconds spent, all of
+    /// it counted as rotations and stiffness (the forces and the upper blocks of `A` are
+    /// computed in the same sweeps).
     fn assemble(&mut self) -> f64 {
         let t = Instant::now();
         let m = self.material();
@@ -269,6 +273,8 @@ impl Simulation {
             &self.mass,
             self.model.gravity,
             &mut self.f,
+            &self.model,
+            &mut self.a,
         );
         self.blocks = Some(blocks);
         self.rotations = rot;

@@ -6,7 +6,7 @@ use super::super::element::{
     cell_rotations4, corner_offsets, corotation_forces, padded_transpose, ElementBlocks, PaddedBlock,
 };
 use super::super::grid::{Cell, Grid};
-use super::{Assembler, CELL_CHUNK};
+use super::{for_each_item, Assembler, CELL_CHUNK};
 use gpumat::simd::{dispatch, Kernel, Portable, Simd4};
 use gpumat::{Mat3, Matrix, Vec3};
 use rayon::prelude::*;
@@ -48,12 +48,15 @@ impl Assembler {
             blocks,
             scale,
         };
-        rotations
-            .par_chunks_mut(CELL_CHUNK)
-            .zip(work.rt.par_chunks_mut(CELL_CHUNK))
-            .zip(work.forces.par_chunks_mut(CELL_CHUNK))
+        let items: Vec<_> = rotations
+            .chunks_mut(CELL_CHUNK)
+            .zip(work.rt.chunks_mut(CELL_CHUNK))
+            .zip(work.forces.chunks_mut(CELL_CHUNK))
             .enumerate()
-            .for_each(|(ci, ((r, rt), f))| sweep.run(ci * CELL_CHUNK, r, rt, f));
+            .collect();
+        for_each_item(self.parallel(), items, |(ci, ((r, rt), f))| {
+            sweep.run(ci * CELL_CHUNK, r, rt, f)
+        });
     }
 
     /// Adds the corotation forces `f_i -= sum_j R K_ij (R^T x_j - x_j)` to `f`.
