@@ -431,6 +431,15 @@ impl ParamSet {
         out
     }
 
+    /// Per component of `x`, true when it is a log factor of the stiffness field.
+    pub fn field_coordinates(&self) -> Vec<bool> {
+        let mut out = Vec::new();
+        for p in &self.params {
+            out.extend(vec![*p == Param::StiffnessField; self.component_count(*p)]);
+        }
+        out
+    }
+
     /// A plausible box for the coordinates of a fit starting at `x0`: Young's modulus and the
     /// density within a factor 100 of the start, the Poisson ratio in `[0.01, 0.49]`, damping
     /// coefficients in `[1e-6, 1e4]`, the stiffness field's factors within `[1/100, 100]`;

@@ -321,11 +321,22 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
 
 /// Fits `problem` from `x0` with Levenberg-Marquardt: the best `x` and its evaluation.
 ///
-/// L-BFGS replaces Levenberg-Marquardt above [`MAX_GAUSS_NEWTON`] coordinates. The
-/// coordinates stay inside [`ParamSet::bounds`] (a step outside counts as a failed
-/// evaluation, so the damping rises): a parameter the data hardly determine (the Poisson ratio
-/// of a body in free flight under a wrong model) cannot drift to the edge of its range, where
-/// the simulation locks.
+/// A stiffness field's log factors `c_k` carry a Gaussian prior centred on the homogeneous
+/// material: the fit minimizes `C(x) + alpha/2 sum_k c_k^2` (a MAP estimate; the returned
+/// evaluation is the data's alone). `alpha = FIELD_PRIOR x max_k H_kk`, the best-seen
+/// factor's Gauss-Newton curvature at the start, fixed for the fit: a factor the data see
+/// [`FIELD_PRIOR`] times less well than that one stays near homogeneous instead of wandering
+/// along a direction the data hardly see (with a global Young's modulus fitted too, a uniform
+/// shift of the factors is such a direction; so are coarse cells the body barely fills).
+///
+/// L-BFGS replaces Levenberg-Marquardt above [`MAX_GAUSS_NEWTON`] coordinates. The model is
+/// only ever evaluated inside [`ParamSet::bounds`]: the optimizer minimizes `C(P(x))` with `P`
+/// the projection onto the box (a coordinate beyond its bound has no effect, and its gradient
+/// and Gauss-Newton rows are zero), and the result is `P(x)`. A parameter the data hardly
+/// determine (the Poisson ratio of a body in free flight under a wrong model) cannot leave its
+/// plausible range, and a fit whose start lies on a bound (the Poisson ratio a wrong model
+/// pushed to 0.01) still moves the other coordinates (a step that only crossed the bound would
+/// otherwise count as a failed evaluation, however good it is for the rest).
 pub fn fit_problem(
     problem: &mut Problem,
     x0: &[f64],
@@ -347,9 +358,11 @@ pub fn fit_problem(
         ..Default::default()
     };
     let bounds = problem.params.bounds(x0);
+    let prior = field_prior(problem, x0)?;
     let mut obj = Bounded {
         inner: FitObjective::new(problem),
         bounds,
+        prior,
     };
     let optimizer = if x0.len() > MAX_GAUSS_NEWTON {
         Optimizer::Lbfgs
@@ -360,6 +373,7 @@ pub fn fit_problem(
         ControlFlow::Continue(())
     })
     .map_err(|e| e.to_string())?;
+    let x = obj.project(&x);
     let ev = match obj.inner.evaluation_at(&x) {
         Some(ev) => ev,
         None => obj.inner.problem.evaluate(&x).map_err(|e| e.to_string())?,
@@ -367,20 +381,63 @@ pub fn fit_problem(
     Ok((x, ev))
 }
 
-/// A fit objective confined to a box ([`fit_problem`]).
+/// The prior's strength relative to the best-seen field factor's curvature ([`fit_problem`]).
+pub const FIELD_PRIOR: f64 = 1e-3;
+
+/// `(coordinate, alpha)` of the stiffness field's prior at the start `x0` of a fit
+/// ([`fit_problem`]); empty without a field.
+fn field_prior(problem: &mut Problem, x0: &[f64]) -> Result<Vec<(usize, f64)>, String> {
+    let coords: Vec<usize> = problem
+        .params
+        .field_coordinates()
+        .iter()
+        .enumerate()
+        .filter_map(|(k, &f)| f.then_some(k))
+        .collect();
+    if coords.is_empty() {
+        return Ok(Vec::new());
+    }
+    let dirs: Vec<Vec<f64>> = coords
+        .iter()
+        .map(|&k| {
+            let mut d = vec![0.0; x0.len()];
+            d[k] = 1.0;
+            d
+        })
+        .collect();
+    let h = problem
+        .gauss_newton_directions(x0, &dirs)
+        .map_err(|e| e.to_string())?;
+    let m = coords.len();
+    let alpha = FIELD_PRIOR * (0..m).map(|i| h[i * m + i]).fold(0.0f64, f64::max);
+    Ok(coords.into_iter().map(|k| (k, alpha)).collect())
+}
+
+/// A fit objective confined to a box, with the field's prior ([`fit_problem`]).
 struct Bounded<'a> {
     inner: FitObjective<'a>,
     bounds: Vec<(f64, f64)>,
+    /// `(coordinate, alpha)`: `alpha/2 x_k^2` added to the cost
+    prior: Vec<(usize, f64)>,
 }
 
 impl Bounded<'_> {
-    fn check(&self, x: &[f64]) -> Result<(), EvalError> {
-        match x
-            .iter()
+    /// `P(x)`: `x` clamped into the box.
+    fn project(&self, x: &[f64]) -> Vec<f64> {
+        x.iter()
             .zip(&self.bounds)
-            .position(|(v, (lo, hi))| v < lo || v > hi)
-        {
-            Some(k) => Err(EvalError::new(format!("coordinate {k} leaves its range"))),
+            .map(|(&v, &(lo, hi))| v.clamp(lo, hi))
+            .collect()
+    }
+    /// Whether coordinate `k` of `x` lies beyond its bound (the projection holds it there).
+    fn outside(&self, x: &[f64], k: usize) -> bool {
+        let (lo, hi) = self.bounds[k];
+        x[k] < lo || x[k] > hi
+    }
+    /// Checks that `x` is finite (the projection of a NaN is not a point).
+    fn check(x: &[f64]) -> Result<(), EvalError> {
+        match x.iter().position(|v| !v.is_finite()) {
+            Some(k) => Err(EvalError::new(format!("coordinate {k} is not finite"))),
             None => Ok(()),
         }
     }
@@ -388,15 +445,41 @@ impl Bounded<'_> {
 
 impl Objective for Bounded<'_> {
     fn eval(&mut self, x: &[f64]) -> Result<(f64, Vec<f64>), EvalError> {
-        self.check(x)?;
-        self.inner.eval(x)
+        Self::check(x)?;
+        let p = self.project(x);
+        let (mut cost, mut g) = self.inner.eval(&p)?;
+        for &(k, alpha) in &self.prior {
+            cost += 0.5 * alpha * p[k] * p[k];
+            g[k] += alpha * p[k];
+        }
+        for (k, gk) in g.iter_mut().enumerate() {
+            if self.outside(x, k) {
+                *gk = 0.0;
+            }
+        }
+        Ok((cost, g))
     }
 }
 
 impl GaussNewtonObjective for Bounded<'_> {
     fn eval_gn(&mut self, x: &[f64]) -> Result<GnEval, EvalError> {
-        self.check(x)?;
-        self.inner.eval_gn(x)
+        Self::check(x)?;
+        let p = self.project(x);
+        let mut ev = self.inner.eval_gn(&p)?;
+        let n = x.len();
+        for &(k, alpha) in &self.prior {
+            ev.cost += 0.5 * alpha * p[k] * p[k];
+            ev.gradient[k] += alpha * p[k];
+            ev.hessian[k * n + k] += alpha;
+        }
+        for k in (0..n).filter(|&k| self.outside(x, k)) {
+            ev.gradient[k] = 0.0;
+            for j in 0..n {
+                ev.hessian[k * n + j] = 0.0;
+                ev.hessian[j * n + k] = 0.0;
+            }
+        }
+        Ok(ev)
     }
 }
 
