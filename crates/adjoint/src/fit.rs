@@ -29,8 +29,10 @@ pub fn point_cloud_cost(
 /// The forward model of a scene on its grid: [`Scene::to_model`] (the built-in effects) plus
 /// what every model-level effect the scene switches on adds
 /// ([`crate::diagnosis::effects::Effect::apply_to_model`], e.g. `wind`'s external force), for
-/// the effects of [`crate::diagnosis::effects::extended_catalogue`].
+/// the effects of [`crate::diagnosis::effects::extended_catalogue`]. Refuses effect names and
+/// sections that no effect claims ([`crate::diagnosis::effects::check_extensions`]).
 pub fn scene_model(scene: &Scene, grid: &Grid) -> Result<Model, String> {
+    crate::diagnosis::effects::check_extensions(scene)?;
     let mut model = scene.to_model();
     for e in crate::diagnosis::effects::extended_catalogue() {
         if scene.effect_on(e.name()) {

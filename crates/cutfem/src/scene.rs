@@ -2,14 +2,22 @@
 //! in, which effects the model includes, time stepping and fitting defaults.
 //!
 //! Unknown keys are errors (a typo must not silently fall back to a default). Relative paths
-//! are relative to the scene file. Effects: `gravity`, `damping`, `ground`, `corotation`,
-//! `stiffness_field`, `initial_velocity`, `wind`; with `[model]` absent, every effect whose
-//! section is present is on, plus corotation.
+//! are relative to the scene file. Core effects ([`EFFECTS`]): `gravity`, `damping`, `ground`,
+//! `corotation`, `stiffness_field`, `initial_velocity`; with `[model]` absent, every effect
+//! whose section is present is on, plus corotation.
 //!
-//! `wind` (`[wind] traction = [x, y, z]`, a uniform force per unit surface area) is parsed here
-//! but built by the adjoint layer (`adjoint::diagnosis::effects::Wind`, through
-//! `adjoint::fit::scene_model`): [`Scene::to_model`] alone leaves it out. See
-//! `docs/effects-tutorial.md`.
+//! Effects defined outside this crate (extensions, e.g. the adjoint layer's tutorial effect
+//! `wind`, `docs/effects-tutorial.md`) own their section: any top-level table that is not a
+//! core section is kept in [`Scene::extensions`] for the layer that defines the effect, which
+//! validates its name and keys (`adjoint::fit::scene_model`, through which every `softbody`
+//! command builds its model) and builds its physics; [`Scene::to_model`] alone leaves them out.
+//! An effect name in `[model].effects` that is not a core effect is such an extension effect.
+
+mod extensions;
+mod mesh_cache;
+
+pub use extensions::{Extension, SECTIONS};
+use mesh_cache::{mesh_cache_get, mesh_cache_put};
 
 use crate::error::Error;
 use crate::fem::{Aabb, Ground, Model};
@@ -18,14 +26,13 @@ use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
 /// The effect vocabulary.
-pub const EFFECTS: [&str; 7] = [
+pub const EFFECTS: [&str; 6] = [
     "gravity",
     "damping",
     "ground",
     "corotation",
     "stiffness_field",
     "initial_velocity",
-    "wind",
 ];
 
 /// `[body]`
@@ -80,15 +87,6 @@ pub struct DampingSection {
 pub struct GravitySection {
     /// acceleration vector
     pub acceleration: [f64; 3],
-}
-
-/// `[wind]`: a uniform traction on the body's surface (the tutorial effect of
-/// `docs/effects-tutorial.md`; built by the adjoint layer).
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct WindSection {
-    /// force per unit surface area (world units)
-    pub traction: [f64; 3],
 }
 
 /// `[ground]`
@@ -282,9 +280,9 @@ impl Default for NumericsSection {
     }
 }
 
-/// A parsed scene file.
+/// A parsed scene file. Its top-level keys are checked by [`Scene::parse`]: the core sections
+/// ([`SECTIONS`]) and extension tables ([`Scene::extensions`]).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
 pub struct Scene {
     /// the body
     pub body: BodySection,
@@ -301,8 +299,6 @@ pub struct Scene {
     pub dirichlet: Vec<DirichletSection>,
     /// initial motion
     pub initial: Option<InitialSection>,
-    /// uniform surface traction
-    pub wind: Option<WindSection>,
     /// time stepping
     #[serde(default)]
     pub time: TimeSection,
@@ -319,6 +315,9 @@ pub struct Scene {
     /// the scene file (set on load)
     #[serde(skip)]
     pub path: PathBuf,
+    /// the sections of effects defined outside this crate, by name (module docs)
+    #[serde(skip)]
+    pub extensions: std::collections::BTreeMap<String, Extension>,
 }
 
 impl Scene {
@@ -330,7 +329,7 @@ impl Scene {
 
     /// Parses scene text; `path` names the file in errors and anchors relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<Scene, Error> {
-        let mut scene: Scene = toml::from_str(text).map_err(|e| {
+        let bad = |e: toml::de::Error| {
             let msg = e.message().replace('\n', " ");
             let at = e
                 .span()
@@ -340,9 +339,13 @@ impl Scene {
                 })
                 .unwrap_or_default();
             Error::format(path, format!("{at}{msg}"))
-        })?;
+        };
+        let table: toml::Table = text.parse().map_err(bad)?;
+        let extensions = extensions::collect(text, table, path)?;
+        let mut scene: Scene = toml::from_str(text).map_err(bad)?;
         scene.path = path.to_path_buf();
         scene.dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        scene.extensions = extensions;
         scene.check(path)?;
         Ok(scene)
     }
@@ -361,45 +364,26 @@ impl Scene {
         }
         if let Some(m) = &self.model {
             for e in &m.effects {
-                if !EFFECTS.contains(&e.as_str()) {
-                    return Err(Error::format(
-                        path,
-                        format!(
-                            "model.effects: unknown effect `{e}` (known: {})",
-                            EFFECTS.join(", ")
-                        ),
-                    ));
-                }
+                // a name that is not a core effect is an extension's, checked by its layer
                 let section = match e.as_str() {
                     "gravity" => self.gravity.is_some(),
                     "damping" => self.damping.is_some(),
                     "ground" => self.ground.is_some(),
                     "initial_velocity" => self.initial.is_some(),
                     "stiffness_field" => m.stiffness_field.is_some(),
-                    "wind" => self.wind.is_some(),
                     _ => true,
                 };
                 if !section {
-                    let name = if e == "initial_velocity" {
-                        "initial"
-                    } else {
-                        e.as_str()
-                    };
-                    let name = if e == "stiffness_field" {
-                        "model.stiffness_field"
-                    } else {
-                        name
+                    let name = match e.as_str() {
+                        "initial_velocity" => "initial",
+                        "stiffness_field" => "model.stiffness_field",
+                        other => other,
                     };
                     return Err(Error::format(
                         path,
                         format!("model.effects: `{e}` is listed but the scene has no [{name}] section"),
                     ));
                 }
-            }
-        }
-        if let Some(w) = &self.wind {
-            if !w.traction.iter().all(|t| t.is_finite()) {
-                return Err(Error::format(path, "wind.traction: must be finite"));
             }
         }
         self.to_model()
@@ -417,10 +401,46 @@ impl Scene {
                 "damping" => self.damping.is_some(),
                 "ground" => self.ground.is_some(),
                 "initial_velocity" => self.initial.is_some(),
-                "wind" => self.wind.is_some(),
-                _ => false,
+                "stiffness_field" => false,
+                other => self.extensions.contains_key(other),
             },
         }
+    }
+
+    /// The effects the model includes: the core ones in [`EFFECTS`] order, then the
+    /// extensions' (in `[model].effects` order, or by name when `[model]` is absent).
+    pub fn effects(&self) -> Vec<String> {
+        let mut out: Vec<String> = EFFECTS
+            .iter()
+            .filter(|e| self.effect_on(e))
+            .map(|e| e.to_string())
+            .collect();
+        let ext: Vec<String> = match &self.model {
+            Some(m) => m.effects.clone(),
+            None => self.extensions.keys().cloned().collect(),
+        };
+        for e in ext {
+            if !EFFECTS.contains(&e.as_str()) && !out.contains(&e) {
+                out.push(e);
+            }
+        }
+        out
+    }
+
+    /// The section of extension effect `name` as `T` (`None`: the scene has none); errors
+    /// name the file, the line and the section.
+    pub fn extension<T: serde::de::DeserializeOwned>(&self, name: &str) -> Result<Option<T>, Error> {
+        self.extensions
+            .get(name)
+            .map(|x| x.parse(name, &self.path))
+            .transpose()
+    }
+
+    /// Sets the section of extension effect `name` (e.g. when a diagnosis switches it on).
+    pub fn set_extension(&mut self, name: &str, table: toml::Table) {
+        let line = self.extensions.get(name).map_or(0, |x| x.line);
+        self.extensions
+            .insert(name.to_string(), Extension { table, line });
     }
 
     /// Resolves a path given in the scene.
@@ -547,40 +567,6 @@ impl Scene {
         };
         Ok(sdf)
     }
-}
-
-/// The SDFs of meshes built in this process, by file (path, size, modification time) and
-/// resolution: a fit or a diagnosis builds the same scene's body many times, and the
-/// winding-number SDF of a mesh costs seconds.
-type MeshKey = (PathBuf, u64, Option<std::time::SystemTime>, u64);
-static MESH_SDFS: std::sync::Mutex<Vec<(MeshKey, crate::SdfGrid)>> = std::sync::Mutex::new(Vec::new());
-/// Meshes kept.
-const MESH_CACHE: usize = 4;
-
-fn mesh_key(path: &Path, resolution: f64) -> Option<MeshKey> {
-    let meta = std::fs::metadata(path).ok()?;
-    Some((
-        path.to_path_buf(),
-        meta.len(),
-        meta.modified().ok(),
-        resolution.to_bits(),
-    ))
-}
-
-fn mesh_cache_get(path: &Path, resolution: f64) -> Option<crate::SdfGrid> {
-    let key = mesh_key(path, resolution)?;
-    let cache = MESH_SDFS.lock().ok()?;
-    cache.iter().find(|(k, _)| *k == key).map(|(_, s)| s.clone())
-}
-
-fn mesh_cache_put(path: &Path, resolution: f64, sdf: &crate::SdfGrid) {
-    let (Some(key), Ok(mut cache)) = (mesh_key(path, resolution), MESH_SDFS.lock()) else {
-        return;
-    };
-    if cache.len() >= MESH_CACHE {
-        cache.remove(0);
-    }
-    cache.push((key, sdf.clone()));
 }
 
 /// Adds `cells` layers of nodes around an SDF grid; the new values grow by the distance to

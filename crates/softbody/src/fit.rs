@@ -312,11 +312,7 @@ pub fn run(args: Args) -> Result<(), String> {
         "files": files,
     });
     // the scene's history of models (`diagnose` plots the rms over them)
-    let effects: Vec<String> = cutfem::scene::EFFECTS
-        .iter()
-        .filter(|e| scene.effect_on(e))
-        .map(|e| e.to_string())
-        .collect();
+    let effects = scene.effects();
     let hist = adjoint::diagnosis::history::history_path(&args.problem.scene);
     adjoint::diagnosis::history::append(
         &hist,

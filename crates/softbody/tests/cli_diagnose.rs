@@ -3,20 +3,9 @@
 //! written, and bad input gives one line naming the file or flag. `softbody demo` tells its
 //! story with the fields of interface.md.
 
-use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn softbody() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_softbody"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("softbody-diagnose-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use std::path::PathBuf;
+mod common;
+use common::*;
 
 fn scene(effects: &str) -> String {
     format!(
@@ -41,36 +30,9 @@ effects = [{effects}]
     )
 }
 
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
-fn run(args: &[&str]) -> Output {
-    softbody().args(args).output().unwrap()
-}
-
-fn json(o: &Output) -> Value {
-    assert!(
-        o.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    serde_json::from_slice(&o.stdout).expect("one JSON object on stdout")
-}
-
-fn fails_with(o: &Output, needle: &str) {
-    assert!(!o.status.success(), "should fail");
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
-    assert!(err.contains(needle), "`{needle}` not in: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-}
-
 #[test]
 fn diagnose_finds_missing_gravity() {
-    let dir = tmp("gravity");
+    let dir = tmp("diagnose", "gravity");
     let truth = write(&dir, "truth.toml", &scene("\"gravity\", \"corotation\""));
     let model = write(&dir, "model.toml", &scene("\"corotation\""));
     let obs = dir.join("obs.csv");
@@ -128,10 +90,10 @@ fn diagnose_finds_missing_gravity() {
 
 #[test]
 fn diagnose_bad_input() {
-    let dir = tmp("bad");
+    let dir = tmp("diagnose", "bad");
     let model = write(&dir, "model.toml", &scene("\"corotation\""));
     let missing = dir.join("nope.csv");
-    fails_with(
+    one_line_error(
         &run(&[
             "diagnose",
             model.to_str().unwrap(),
@@ -141,7 +103,7 @@ fn diagnose_bad_input() {
         "nope.csv",
     );
     let bad = write(&dir, "bad.csv", "frame,x,y,z\n1,0.0,1.0,zero\n");
-    fails_with(
+    one_line_error(
         &run(&[
             "diagnose",
             model.to_str().unwrap(),
@@ -151,7 +113,7 @@ fn diagnose_bad_input() {
         "bad.csv: line 2",
     );
     let ok = write(&dir, "ok.csv", "frame,x,y,z\n1,0.0,1.0,0.0\n");
-    fails_with(
+    one_line_error(
         &run(&[
             "diagnose",
             model.to_str().unwrap(),

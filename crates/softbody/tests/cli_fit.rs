@@ -2,20 +2,9 @@
 //! truth from noise-free observations, the log survives and `--resume` continues it, the
 //! gradient check agrees, and bad input gives one line naming the file (and line) or key.
 
-use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn softbody() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_softbody"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("softbody-fit-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::*;
 
 fn scene(young: f64, poisson: f64) -> String {
     format!(
@@ -45,33 +34,6 @@ iterations = 15
     )
 }
 
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
-fn run(args: &[&str]) -> Output {
-    softbody().args(args).output().unwrap()
-}
-
-fn json(o: &Output) -> Value {
-    assert!(
-        o.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    serde_json::from_slice(&o.stdout).expect("one JSON object")
-}
-
-fn one_line_error(o: &Output, needle: &str) {
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "stderr: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    assert!(err.contains(needle), "expected `{needle}` in: {err}");
-}
-
 /// Observations of the truth (E = 2000, nu = 0.3) with 4 cameras.
 fn observe(dir: &Path) -> PathBuf {
     let truth = write(dir, "truth.toml", &scene(2000.0, 0.3));
@@ -92,7 +54,7 @@ fn observe(dir: &Path) -> PathBuf {
 
 #[test]
 fn fit_recovers_the_truth_and_resumes() {
-    let dir = tmp("recover");
+    let dir = tmp("fit", "recover");
     let obs = observe(&dir);
     let start = write(&dir, "start.toml", &scene(2600.0, 0.35));
     let out = dir.join("report");
@@ -157,7 +119,7 @@ fn fit_recovers_the_truth_and_resumes() {
 
 #[test]
 fn gradcheck_agrees_and_bad_input_is_one_line() {
-    let dir = tmp("check");
+    let dir = tmp("fit", "check");
     let obs = observe(&dir);
     let start = write(&dir, "start.toml", &scene(2400.0, 0.32));
     let s = start.to_str().unwrap();

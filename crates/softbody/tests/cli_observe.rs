@@ -6,18 +6,9 @@ use adjoint::observations::Observations;
 use cutfem::mesh::distance::closest_point_on_triangle;
 use cutfem::TriMesh;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn softbody() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_softbody"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("softbody-cli-observe-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use std::process::Output;
+mod common;
+use common::*;
 
 const SMALL: &str = r#"
 [body]
@@ -50,14 +41,6 @@ fn observe(scene: &Path, out: &Path, extra: &[&str]) -> Output {
         .unwrap()
 }
 
-fn ok(o: &Output) {
-    assert!(
-        o.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
-
 fn distance_to(mesh: &TriMesh, p: [f64; 3]) -> f64 {
     (0..mesh.faces.len())
         .map(|f| {
@@ -70,7 +53,7 @@ fn distance_to(mesh: &TriMesh, p: [f64; 3]) -> f64 {
 
 #[test]
 fn observe_writes_points_on_the_simulated_surface() {
-    let dir = tmp("ok");
+    let dir = tmp("cli-observe", "ok");
     let scene = scene(&dir);
     let csv = dir.join("obs/points.csv");
     let png = dir.join("preview.png");
@@ -143,7 +126,7 @@ fn observe_writes_points_on_the_simulated_surface() {
 
 #[test]
 fn the_seed_makes_runs_reproducible_and_frames_are_selectable() {
-    let dir = tmp("seed");
+    let dir = tmp("cli-observe", "seed");
     let scene = scene(&dir);
     let run = |name: &str, extra: &[&str]| {
         let csv = dir.join(name);
@@ -182,7 +165,7 @@ fn the_seed_makes_runs_reproducible_and_frames_are_selectable() {
 
 #[test]
 fn bad_flags_are_one_line_errors() {
-    let dir = tmp("bad");
+    let dir = tmp("cli-observe", "bad");
     let scene = scene(&dir);
     let csv = dir.join("o.csv");
     let blocker = dir.join("file");

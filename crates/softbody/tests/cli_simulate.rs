@@ -1,19 +1,8 @@
 //! `softbody simulate` end to end: a small scene runs and writes its files and JSON; bad input
 //! gives one line on stderr, a non-zero exit code and no panic.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn softbody() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_softbody"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("softbody-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::*;
 
 const SMALL: &str = r#"
 [body]
@@ -32,15 +21,9 @@ dt = 0.01
 steps = 4
 "#;
 
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
 #[test]
 fn simulate_writes_frames_picture_and_json() {
-    let dir = tmp("ok");
+    let dir = tmp("cli", "ok");
     let scene = write(&dir, "small.toml", SMALL);
     let out = dir.join("out");
     let o = softbody()
@@ -76,7 +59,7 @@ fn simulate_writes_frames_picture_and_json() {
 }
 
 fn expect_error(scene_text: &str, needle: &str) {
-    let dir = tmp(&needle.replace(|c: char| !c.is_alphanumeric(), "_"));
+    let dir = tmp("cli", &needle.replace(|c: char| !c.is_alphanumeric(), "_"));
     let scene = write(&dir, "bad.toml", scene_text);
     let o = softbody()
         .args([
@@ -87,12 +70,7 @@ fn expect_error(scene_text: &str, needle: &str) {
         ])
         .output()
         .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "should fail: {needle}");
-    assert_eq!(o.status.code(), Some(1), "exit code for {needle}: {err}");
-    assert!(!err.contains("panicked"), "panic: {err}");
-    assert_eq!(err.trim().lines().count(), 1, "one line expected: {err}");
-    assert!(err.contains(needle), "`{needle}` not in: {err}");
+    one_line_error(&o, needle);
 }
 
 #[test]
@@ -132,7 +110,7 @@ fn bad_parameters_are_one_line_errors() {
 #[test]
 fn simulate_with_other_preconditioners() {
     for (name, factorizations) in [("block_ic0", 4), ("rest_cholesky", 1)] {
-        let dir = tmp(name);
+        let dir = tmp("cli", name);
         let text = format!("{SMALL}[numerics]\npreconditioner = \"{name}\"\n");
         let scene = write(&dir, "small.toml", &text);
         let out = dir.join("out");
@@ -160,7 +138,7 @@ fn simulate_with_other_preconditioners() {
 
 #[test]
 fn bad_bodies_are_one_line_errors() {
-    let dir = tmp("bodies");
+    let dir = tmp("cli", "bodies");
     // truncated .sdf
     let sdf = dir.join("trunc.sdf");
     let mut bytes = Vec::new();

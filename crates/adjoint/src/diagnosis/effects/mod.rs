@@ -18,8 +18,13 @@
 //! from a plane through the lowest observed points (a plane far away has no contact, hence no
 //! gradient), corotation (no parameter) is switched on and the cost compared.
 //!
-//! Adding an effect: implement [`Effect`] in a new file of this folder and list it in
-//! [`catalogue`] or [`extended_catalogue`]. An effect whose physics is a nodal force linear in
+//! Adding an effect: implement [`Effect`] in a new file of this folder, declare the file
+//! (`pub mod`) and list the effect in [`catalogue`] or [`extended_catalogue`]; nothing outside
+//! this folder changes. Its scene section is its own: cutfem keeps any top-level table that is
+//! not a core section ([`cutfem::scene::Scene::extensions`]), the effect reads it with
+//! [`cutfem::scene::Scene::extension`] into its own `deny_unknown_fields` struct, and
+//! [`check_extensions`] (called by [`crate::fit::scene_model`]) refuses sections and effect
+//! names no effect claims. An effect whose physics is a nodal force linear in
 //! its parameters and independent of the state needs nothing else: its
 //! [`Effect::apply_to_model`] adds basis fields to the model's
 //! [`cutfem::fem::ExternalForce`], whose forward (cutfem), adjoint ([`crate::backward`]),
@@ -50,7 +55,7 @@ pub use wind::Wind;
 use crate::observations::Observations;
 use crate::params::Param;
 use cutfem::fem::{Grid, Model};
-use cutfem::scene::{ModelSection, Scene, EFFECTS};
+use cutfem::scene::{ModelSection, Scene};
 
 /// How a diagnosis scores an effect the model lacks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -131,16 +136,46 @@ pub fn effect(name: &str) -> Option<Box<dyn Effect>> {
 /// corotation") so that effects can be added to it.
 pub fn explicit_effects(scene: &mut Scene) {
     if scene.model.is_none() {
-        let effects = EFFECTS
-            .iter()
-            .filter(|e| scene.effect_on(e))
-            .map(|e| e.to_string())
-            .collect();
+        let effects = scene.effects();
         scene.model = Some(ModelSection {
             effects,
             stiffness_field: None,
         });
     }
+}
+
+/// Checks the scene's extension effects (module docs): every effect name in `[model].effects`
+/// and every extension section must belong to an effect of the [`extended_catalogue`]. The
+/// error names the file and, for a section, its line.
+pub fn check_extensions(scene: &Scene) -> Result<(), String> {
+    let known: Vec<&'static str> = extended_catalogue().iter().map(|e| e.name()).collect();
+    let file = scene.path.display();
+    if let Some(m) = &scene.model {
+        if let Some(e) = m.effects.iter().find(|e| !known.contains(&e.as_str())) {
+            return Err(format!(
+                "{file}: model.effects: unknown effect `{e}` (known: {})",
+                known.join(", ")
+            ));
+        }
+    }
+    if let Some((name, x)) = scene
+        .extensions
+        .iter()
+        .find(|(name, _)| !known.contains(&name.as_str()))
+    {
+        let own: Vec<&str> = known
+            .iter()
+            .copied()
+            .filter(|e| !cutfem::scene::EFFECTS.contains(e))
+            .collect();
+        return Err(format!(
+            "{file}: {}unknown section [{name}] (core sections: {}; effects with their own section: {})",
+            x.location(),
+            cutfem::scene::SECTIONS.join(", "),
+            own.join(", ")
+        ));
+    }
+    Ok(())
 }
 
 /// Adds `name` to `[model].effects` (once).

@@ -23,8 +23,8 @@
 //! which is exactly a [`cutfem::fem::ExternalForce`] with 3 basis fields. Its forward (added to
 //! `f` every step, entering the Newmark right-hand side as `dt f`), adjoint
 //! (`dJ/dw_d = dt sum_t lam_t . F_d`), tangent-linear and parameter code (`external_force`)
-//! are generic: this file only builds the basis and maps the `[wind]` section to and from the
-//! model. Neutral value: `w = 0`; a diagnosis probes it by a score test there.
+//! are generic: this file only builds the basis and maps its own `[wind]` section
+//! ([`WindSection`], a cutfem extension section) to and from the model. Neutral value: `w = 0`; a diagnosis probes it by a score test there.
 //!
 //! Unlike gravity (`M g`, proportional to the mass of each node), the wind pulls on the
 //! surface only: on a homogeneous body the two differ only in how the force is distributed,
@@ -33,7 +33,7 @@
 use super::{add_effect, toml_vec, DataContext, Effect, Probe};
 use crate::params::Param;
 use cutfem::fem::{ExternalForce, Grid, Model};
-use cutfem::scene::{Scene, WindSection};
+use cutfem::scene::Scene;
 use gpumat::Vec3;
 use std::sync::Arc;
 
@@ -43,6 +43,37 @@ pub const LABELS: [&str; 3] = ["wind.x", "wind.y", "wind.z"];
 /// A uniform surface traction.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Wind;
+
+/// `[wind]`: the effect's scene section (read by [`Scene::extension`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct WindSection {
+    /// force per unit surface area (world units)
+    pub traction: [f64; 3],
+}
+
+impl WindSection {
+    /// The scene's `[wind]`, checked (`None`: the scene has none).
+    pub fn of(scene: &Scene) -> Result<Option<WindSection>, String> {
+        let w: Option<WindSection> = scene.extension("wind").map_err(|e| e.to_string())?;
+        if let Some(w) = &w {
+            if !w.traction.iter().all(|t| t.is_finite()) {
+                return Err(format!(
+                    "{}: [wind].traction: must be finite",
+                    scene.path.display()
+                ));
+            }
+        }
+        Ok(w)
+    }
+    /// Writes it into `scene` as its `[wind]` section.
+    pub fn set(self, scene: &mut Scene) {
+        let toml::Value::Table(t) = toml::Value::try_from(self).expect("a table") else {
+            unreachable!("a struct serializes to a table")
+        };
+        scene.set_extension("wind", t);
+    }
+}
 
 /// Per degree of freedom, its share `A_i = sum_e w_b(e, i)` of the surface area.
 pub fn node_areas(grid: &Grid) -> Vec<f64> {
@@ -89,13 +120,13 @@ impl Effect for Wind {
         Probe::Score
     }
     fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), String> {
-        scene.wind = Some(WindSection { traction: [0.0; 3] });
+        WindSection { traction: [0.0; 3] }.set(scene);
         add_effect(scene, self.name());
         Ok(())
     }
     fn write_back(&self, scene: &mut Scene, model: &Model) {
         if let Some(traction) = traction(model) {
-            scene.wind = Some(WindSection { traction });
+            WindSection { traction }.set(scene);
         }
     }
     fn suggestion(&self, model: &Model) -> String {
@@ -105,10 +136,7 @@ impl Effect for Wind {
         )
     }
     fn apply_to_model(&self, scene: &Scene, grid: &Grid, model: &mut Model) -> Result<(), String> {
-        let w = scene
-            .wind
-            .as_ref()
-            .ok_or("listed in [model].effects without a [wind] section")?;
+        let w = WindSection::of(scene)?.ok_or("listed in [model].effects without a [wind] section")?;
         let force = ExternalForce {
             basis: Arc::new(basis(grid)),
             coefficients: w.traction.to_vec(),
@@ -158,7 +186,45 @@ mod tests {
             .unwrap()
             .external_force
             .is_none());
-        let err = scene("[model]\neffects = [\"wind\"]\n").unwrap_err();
+        let model_err = |extra: &str| {
+            let s = scene(extra).unwrap();
+            crate::fit::scene_model(&s, &grid).unwrap_err()
+        };
+        let err = model_err("[model]\neffects = [\"wind\"]\n");
         assert!(err.contains("[wind]"), "{err}");
+        // the section's keys are the effect's: a typo names the file, line and section
+        let err = model_err("\n[wind]\ntractio = [1.0, 0.0, 0.0]\n");
+        assert!(
+            err.contains("wind.toml: line 8: [wind]: unknown field `tractio`"),
+            "{err}"
+        );
+        let err = model_err("[wind]\ntraction = [1.0, 0.0, nan]\n");
+        assert!(err.contains("[wind].traction: must be finite"), "{err}");
+    }
+
+    /// A section or an effect name no effect claims is refused, naming the file and line.
+    #[test]
+    fn unknown_sections_and_effects_are_errors() {
+        let grid = Grid::new(scene("").unwrap().body_sdf().unwrap()).unwrap();
+        let model_err = |extra: &str| {
+            let s = scene(extra).unwrap();
+            crate::fit::scene_model(&s, &grid).unwrap_err()
+        };
+        let err = model_err("[gravty]\nacceleration = [0.0, -9.81, 0.0]\n");
+        assert!(
+            err.starts_with("wind.toml: line 7: unknown section [gravty]"),
+            "{err}"
+        );
+        assert!(err.contains("effects with their own section: wind"), "{err}");
+        let err = model_err("[model]\neffects = [\"magic\"]\n");
+        assert!(err.contains("model.effects: unknown effect `magic`"), "{err}");
+        // a top-level key that is no section is refused by the scene parser itself
+        let err = Scene::parse(
+            "youngs = 3.0\n[body]\nresolution = 5\n",
+            std::path::Path::new("w.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("line 1: unknown key `youngs`"), "{err}");
     }
 }
