@@ -28,20 +28,24 @@ use crate::TriMesh;
 /// Distance of the near plane from the eye, relative to the eye-target distance.
 const NEAR: f64 = 1e-3;
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+/// `a - b`.
+pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+/// `a . b`.
+pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+/// `a x b`.
+pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
         a[0] * b[1] - a[1] * b[0],
     ]
 }
-fn normalize(a: [f64; 3]) -> [f64; 3] {
+/// `a / |a|` (`a` itself when zero).
+pub fn normalize(a: [f64; 3]) -> [f64; 3] {
     let n = dot(a, a).sqrt();
     if n > 0.0 {
         a.map(|x| x / n)
@@ -101,6 +105,13 @@ impl Camera {
         let half = 20f64.to_radians();
         let dist = (1.05 * r / half.sin()).max(1e-9);
         Camera::orbit(center, dist, theta, phi)
+    }
+
+    /// The direction towards the headlight, just above and left of the eye (the light of
+    /// every picture).
+    pub fn headlight(&self) -> [f64; 3] {
+        let fr = self.frame(1, 1);
+        normalize([0, 1, 2].map(|d| -fr.forward[d] + 0.35 * fr.up[d] - 0.25 * fr.right[d]))
     }
 
     fn frame(&self, width: usize, height: usize) -> Frame {
@@ -309,7 +320,7 @@ pub fn render(
     let bg = options.background.map(|c| c as f64 / 255.0);
     let mut color = vec![bg; w * h];
     let mut depth = vec![f64::INFINITY; w * h];
-    let light = normalize([0, 1, 2].map(|d| -fr.forward[d] + 0.35 * fr.up[d] - 0.25 * fr.right[d]));
+    let light = camera.headlight();
     let ambient = options.ambient.clamp(0.0, 1.0);
 
     for item in items {

@@ -2,35 +2,13 @@
 //! Lambert shading from a headlight, for the diagnosis pictures; `cutfem::render` colours a
 //! mesh uniformly or through viridis only. Vertices are placed with [`Camera::project`].
 
-use cutfem::render::{Camera, Image};
+use cutfem::render::{cross, dot, normalize, sub, Camera, Image};
 use cutfem::TriMesh;
 
 /// Supersampling factor per axis.
 const SS: usize = 2;
 /// Ambient share of the shading (high, so that the colour map stays readable).
 const AMBIENT: f64 = 0.45;
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let n = dot(a, a).sqrt();
-    if n > 0.0 {
-        a.map(|x| x / n)
-    } else {
-        a
-    }
-}
 
 /// A rendered view: the picture, its depth per pixel (infinite on the background) and the
 /// camera, so that points can be drawn over it where they are visible.
@@ -39,17 +17,6 @@ pub struct View {
     pub img: Image,
     depth: Vec<f64>,
     camera: Camera,
-}
-
-/// The headlight of `camera`: just above and left of the eye, as in `cutfem::render`.
-fn headlight(camera: &Camera) -> [f64; 3] {
-    let forward = normalize(sub(camera.target, camera.eye));
-    let mut right = normalize(cross(forward, camera.up));
-    if dot(right, right) == 0.0 {
-        right = normalize(cross(forward, [1.0, 0.0, 0.0]));
-    }
-    let up = cross(right, forward);
-    normalize([0, 1, 2].map(|d| -forward[d] + 0.35 * up[d] - 0.25 * right[d]))
 }
 
 /// Area-weighted vertex normals (faces with bad indices skipped).
@@ -75,7 +42,7 @@ pub fn shaded(mesh: &TriMesh, colors: &[[f64; 3]], camera: &Camera, width: usize
     let (w, h) = (width * SS, height * SS);
     let mut color = vec![[1.0; 3]; w * h];
     let mut depth = vec![f64::INFINITY; w * h];
-    let light = headlight(camera);
+    let light = camera.headlight();
     let normals = vertex_normals(mesh);
     let nv = mesh.vertices.len();
     let proj: Vec<Option<[f64; 3]>> = mesh.vertices.iter().map(|&p| camera.project(p, w, h)).collect();
