@@ -44,12 +44,13 @@ pub struct CuboidRow {
     pub grid_entries_per_row: f64,
     /// average 3x3 blocks per row of the tets' stiffness matrix
     pub tet_entries_per_row: f64,
-    /// grid: seconds per step in assembly (rotations, K, forces, A, b)
+    /// grid: seconds per step in assembly (rotations, stiffness values, forces, A, b)
     pub grid_assembly_s: f64,
     /// tets: seconds per step in assembly
     pub tet_assembly_s: f64,
-    /// grid: seconds per step in rotations + stiffness values (the thesis' "assembly"), with the
-    /// corotation and body forces and the upper blocks of A computed in the same sweeps
+    /// grid: seconds per step in rotations + stiffness values (the thesis' "assembly"): the cell
+    /// and row sweeps, which also compute `K u`, the corotation and body forces, the upper
+    /// blocks of A and most of b (a step's stiffness values go into A, K is not stored)
     pub grid_stiffness_s: f64,
     /// tets: seconds per step in rotations + stiffness values
     pub tet_stiffness_s: f64,

@@ -1,42 +1,49 @@
 //! Assembly of the stiffness matrix and the element forces (thesis sec. 4.4.1-4.4.2).
 //!
 //! Pattern once, values every step (sec. 4.3.3): the BSR pattern of K (node pairs sharing an
-//! active cell) and the gather map (for each stored block, the list of element blocks
-//! `(e, i, j)` that sum into it) depend only on the reference grid and are built once.
-//! Each step, the values are computed row by row in parallel: a block is the fixed-order sum
-//! of its element contributions, so there are no atomics, no races and the result does not
-//! depend on the thread count.
-//!
-//! A step's assembly is three sweeps: one over the cells ([`Assembler::rotations_and_cell_forces`]:
-//! rotation `R_e`, four cells at a time, and the eight corotation corner forces while the
-//! cell's blocks are at hand), one over the rows (the upper-triangle blocks of `K`, the same
-//! blocks of the Newmark matrix `A` while they are in cache, and the force `f_r = m_r g + sum`
-//! of the corner forces of the node), then, after the ground forces, the Newmark pass
-//! (`Assembler::newmark`), which completes `K` and `A` (each lower block is the transpose of
-//! its mirror) while it writes `b`. Every pass works on fixed chunks of rows or cells, writes
-//! each value from exactly one task and sums in a fixed order, so the results are
-//! bit-identical whatever the number of threads (and equal to those of the plain passes:
-//! [`Assembler::assemble_stiffness`], [`crate::fem::sim::newmark_system`]). The hot loops are
-//! written once over [`gpumat::simd::Simd4`] and run in AVX2 registers where the CPU has them
-//! (same values).
+//! active cell) and the gather map (for each node, its cells in cell order and, for each of
+//! them, where its element blocks `(i, j)` go among the node's row of blocks) depend only on
+//! the reference grid and are built once. Each step, the values are computed row by row in
+//! parallel: a block is the fixed-order sum of its element contributions (in cell order), so
+//! there are no atomics, no races and the result does not depend on the thread count.
 //!
 //! Element block (e, i, j): `R_e K_ij(e) R_e^T` (corotation, eq. 4.4.7/4.4.10) plus, for a
 //! Dirichlet cell, the Nitsche terms (eq. 4.4.16-4.4.17), added after the rotation as the
 //! thesis prescribes. The corotation force of corner `i` is
 //! `f_i -= sum_j R_e K_ij (R_e^T x_j - x_j)` (eq. 4.4.6/4.4.10); because `sum_j K_ij = 0`
 //! the corner positions may be taken relative to the cell.
+//!
+//! A time step needs the Newmark matrix `A = cm M + ck K` and right-hand side
+//! `b = cm M u + cu K u + cv M v + dt f` ([`newmark`]), not `K` itself: writing `K` and
+//! reading it again for `b` and the lower half of `A` would double the memory traffic of the
+//! assembly. A step's assembly is three sweeps:
+//! 1. over the cells ([`Assembler::rotations_and_cell_rhs`], [`cells`]): the rotation `R_e`,
+//!    four cells at a time, and, while the cell's blocks are at hand, its share of `b` at its
+//!    corners: `cu K u` and `dt` times the corotation force in one product per cell;
+//! 2. over the rows ([`step`]): the blocks of `A` on and above the diagonal, each from the
+//!    block of `K` summed in registers (and stored too where the caller keeps `K`, as the
+//!    adjoint's recomputed steps do), `f = M g` and `b` without `dt f`;
+//! 3. after the external and ground forces: the blocks of `A` (and `K`) below the diagonal
+//!    as the transposes of their mirrors, and `b += dt f`.
+//!
+//! Every pass works on fixed chunks of rows or cells, writes each value from exactly one task
+//! and sums in a fixed order, so the results are bit-identical whatever the number of
+//! threads; `K` and `A` are those of the plain passes ([`Assembler::assemble_stiffness`],
+//! [`crate::fem::sim::newmark_system`]) bit for bit, `b` equals theirs up to rounding (it
+//! sums the same terms in another order). The hot loops are written once over
+//! [`gpumat::simd::Simd4`] and run in AVX2 registers where the CPU has them (same values).
 
 mod cells;
 mod newmark;
+mod step;
 
 pub use cells::CellWork;
-pub(crate) use newmark::fill_newmark;
-use newmark::Coefficients;
+pub(crate) use newmark::{fill_newmark, Coefficients};
+pub(crate) use step::{StepOutput, StepState};
 
 use super::element::{lanes3, padded_transpose, rotate_add, PaddedBlock, StiffnessTables, OPPOSITE};
 pub use super::element::{rotate_block, ElementBlocks};
 use super::grid::Grid;
-use super::model::Model;
 use gpumat::simd::{dispatch, Kernel, Simd4};
 use gpumat::{Mat3, Matrix, Scalar, SparseMatrix, SparsityPattern, Vec3};
 use rayon::prelude::*;
@@ -45,6 +52,11 @@ use std::sync::Arc;
 /// Rows per task of the parallel row passes. The chunking never changes a value: each entry,
 /// row and cell is computed by one task in a fixed order, whatever the number of threads.
 pub(crate) const ROW_CHUNK: usize = 64;
+/// The most blocks on and above the diagonal of a row: a node and the 13 neighbours after it
+/// in its 3x3x3 neighbourhood.
+const MAX_UPPER: usize = 14;
+/// [`Assembler`]'s mark of a corner pair with no block of its own in the row sweep.
+const NO_BLOCK: u8 = u8::MAX;
 /// Cells per task of the parallel cell pass.
 const CELL_CHUNK: usize = 64;
 
@@ -60,8 +72,8 @@ fn for_each_item<T: Send>(parallel: bool, items: Vec<T>, f: impl Fn(T) + Send + 
     }
 }
 
-/// The values of a sparse matrix shared by parallel tasks that write disjoint entries
-/// ([`Assembler::assemble_stiffness`]).
+/// The values of a sparse matrix shared by parallel tasks that write disjoint entries (the
+/// mirroring of the blocks below the diagonal).
 #[derive(Clone, Copy)]
 struct EntryWriter(*mut Mat3<f64>, usize);
 
@@ -105,18 +117,21 @@ pub struct Material {
 #[derive(Clone, Debug)]
 pub struct Assembler {
     pattern: Arc<SparsityPattern>,
-    /// contributions of each stored block: `contrib[contrib_ptr[k]..contrib_ptr[k+1]]`
-    contrib_ptr: Vec<u32>,
-    /// `(cell, 8 i + j)`
-    contrib: Vec<(u32, u8)>,
     /// the diagonal entry of each row: the row's entries from it on are computed, the ones
     /// before it (below the diagonal) are the transposes of their mirrors
     diag: Vec<u32>,
     /// the entry of `(c, r)` for each entry `(r, c)`
     mirror: Vec<u32>,
-    /// cells touching each dof: `node_cells[node_ptr[d]..node_ptr[d+1]]` as `(cell, corner)`
+    /// cells touching each dof: `node_cells[node_ptr[d]..node_ptr[d+1]]` as `(cell, corner)`,
+    /// in cell order
     node_ptr: Vec<u32>,
     node_cells: Vec<(u32, u8)>,
+    /// per entry of `node_cells`, `(cell e, corner i)` of node `r`: for each corner `j`, the
+    /// place of block `(r, dofs[j])` among the row's blocks from the diagonal on, or
+    /// [`NO_BLOCK`] where that block lies below the diagonal or `i ^ j` = [`OPPOSITE`]
+    upper: Vec<[u8; 8]>,
+    /// the corner dofs of each cell (the cells' `dofs`, packed for the cell sweep)
+    cell_dofs: Vec<[u32; 8]>,
     tables: StiffnessTables,
 }
 
@@ -130,39 +145,6 @@ impl Assembler {
                 .flat_map(move |&a| c.dofs.iter().map(move |&b| (a as usize, b as usize)))
         });
         let pattern = SparsityPattern::from_entries(n, n, entries);
-        // Gather map: count, then fill in cell order (deterministic order of summation).
-        // Opposite corners (`i ^ j = 7`) share no quadrature corner where both basis
-        // gradients are nonzero: their stiffness and Nitsche blocks are exactly zero and are
-        // left out (adding a zero block to a sum that starts at +0 never changes it).
-        let mut count = vec![0u32; pattern.nnz() + 1];
-        let mut slot = Vec::with_capacity(grid.cells.len() * 64);
-        for c in &grid.cells {
-            for i in 0..8 {
-                for j in 0..8 {
-                    if i ^ j == OPPOSITE {
-                        slot.push(u32::MAX);
-                        continue;
-                    }
-                    let k = pattern
-                        .find(c.dofs[i] as usize, c.dofs[j] as usize)
-                        .expect("pattern holds every cell pair");
-                    count[k + 1] += 1;
-                    slot.push(k as u32);
-                }
-            }
-        }
-        for k in 0..pattern.nnz() {
-            count[k + 1] += count[k];
-        }
-        let contrib_ptr = count.clone();
-        let mut next = count;
-        let mut contrib = vec![(0u32, 0u8); contrib_ptr[pattern.nnz()] as usize];
-        for (e, chunk) in slot.chunks(64).enumerate() {
-            for (ij, &k) in chunk.iter().enumerate().filter(|(_, &k)| k != u32::MAX) {
-                contrib[next[k as usize] as usize] = (e as u32, ij as u8);
-                next[k as usize] += 1;
-            }
-        }
         let mut ncount = vec![0u32; n + 1];
         for c in &grid.cells {
             for &d in &c.dofs {
@@ -186,19 +168,45 @@ impl Assembler {
         let mut mirror = vec![0u32; pattern.nnz()];
         for r in 0..n {
             diag.push(pattern.find(r, r).expect("every dof is in a cell") as u32);
+            assert!(
+                pattern.row_range(r).end - diag[r] as usize <= MAX_UPPER,
+                "cutfem: a node with more than 13 neighbours above it"
+            );
             for kk in pattern.row_range(r) {
                 let c = pattern.col_idx()[kk] as usize;
                 mirror[kk] = pattern.find(c, r).expect("cell pairs give a symmetric pattern") as u32;
             }
         }
+        // The gather map of the row sweep. Opposite corners (`i ^ j = 7`) share no quadrature
+        // corner where both basis gradients are nonzero: their stiffness and Nitsche blocks
+        // are exactly zero and are left out (adding a zero block to a sum that starts at +0
+        // never changes it).
+        let upper = (0..n)
+            .flat_map(|r| {
+                node_cells[node_ptr[r] as usize..node_ptr[r + 1] as usize]
+                    .iter()
+                    .map(move |&ec| (r, ec))
+            })
+            .map(|(r, (e, i))| {
+                let dofs = &grid.cells[e as usize].dofs;
+                std::array::from_fn(|j| {
+                    let c = dofs[j] as usize;
+                    if c < r || j ^ i as usize == OPPOSITE {
+                        return NO_BLOCK;
+                    }
+                    let kk = pattern.find(r, c).expect("pattern holds every cell pair");
+                    (kk - diag[r] as usize) as u8
+                })
+            })
+            .collect();
         Self {
             pattern,
-            contrib_ptr,
-            contrib,
             diag,
             mirror,
             node_ptr,
             node_cells,
+            upper,
+            cell_dofs: grid.cells.iter().map(|c| c.dofs).collect(),
             tables: StiffnessTables::new(grid.h()),
         }
     }
@@ -233,120 +241,51 @@ impl Assembler {
         scale: Option<&[f64]>,
         k: &mut SparseMatrix<Mat3<f64>>,
     ) {
-        let rt: Vec<PaddedBlock> =
-            rotations.map_or_else(Vec::new, |r| r.par_iter().map(padded_transpose).collect());
+        let c = (grid, m, blocks, rotations, dirichlet, scale);
+        self.stiffness_values(c, k, self.parallel());
+    }
+
+    /// [`Assembler::assemble_stiffness`] on the calling thread alone (never waits on the rayon
+    /// pool: safe inside a lazy initialization that a rayon job may reach).
+    pub(crate) fn assemble_stiffness_serial(&self, c: StiffnessInputs<'_>, k: &mut SparseMatrix<Mat3<f64>>) {
+        self.stiffness_values(c, k, false);
+    }
+
+    fn stiffness_values(&self, c: StiffnessInputs<'_>, k: &mut SparseMatrix<Mat3<f64>>, parallel: bool) {
+        let (grid, m, blocks, rotations, dirichlet, scale) = c;
+        let rt: Vec<PaddedBlock> = match rotations {
+            Some(r) if parallel => r.par_iter().map(padded_transpose).collect(),
+            Some(r) => r.iter().map(padded_transpose).collect(),
+            None => Vec::new(),
+        };
         let cells = Cells {
             grid,
             m,
             blocks,
-            rotations: rotations.map(|r| (r, &rt[..])),
+            rotations: rotations.map(|_| &rt[..]),
             dirichlet,
             scale,
         };
-        self.assemble_values(&cells, k, None);
+        self.assemble_values(&cells, k, parallel);
     }
 
-    /// A step's stiffness values and forces in one row sweep: the blocks of `k` on and above
-    /// the diagonal (as [`Assembler::assemble_stiffness`]), the same blocks of the Newmark
-    /// matrix `a` of `model` (while the row's blocks are in cache) and `f_r = m_r g + sum` of
-    /// the corner forces of node `r` (its cells in [`Assembler::cells_of`] order). The blocks
-    /// below the diagonal and `b` are left to the step's Newmark pass ([`Assembler::newmark`]),
-    /// which mirrors them. `corotation`: the rotations and the cell data of
-    /// [`Assembler::rotations_and_cell_forces`] (`None`: no corotation, gravity only).
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn assemble_upper_with_forces(
-        &self,
-        grid: &Grid,
-        m: &Material,
-        blocks: &ElementBlocks,
-        corotation: Option<(&[Mat3<f64>], &CellWork)>,
-        dirichlet: &[bool],
-        scale: Option<&[f64]>,
-        k: &mut SparseMatrix<Mat3<f64>>,
-        mass: &Matrix<f64>,
-        gravity: Vec3<f64>,
-        f: &mut Matrix<Vec3<f64>>,
-        model: &Model,
-        a: &mut SparseMatrix<Mat3<f64>>,
-    ) {
-        let cells = Cells {
-            grid,
-            m,
-            blocks,
-            rotations: corotation.map(|(r, w)| (r, &w.rt[..])),
-            dirichlet,
-            scale,
-        };
-        let forces = Forces {
-            mass: mass.as_slice(),
-            gravity,
-            cell_forces: corotation.map(|(_, w)| &w.forces[..]),
-            newmark: Coefficients::new(model),
-        };
+    /// All blocks of `k`: the upper ones by the row sweep, the lower ones by mirroring, on
+    /// the rayon pool when `parallel`.
+    fn assemble_values(&self, c: &Cells<'_>, k: &mut SparseMatrix<Mat3<f64>>, parallel: bool) {
         assert!(
-            Arc::ptr_eq(a.pattern(), &self.pattern) && a.batches() == 1,
-            "cutfem: Newmark matrix has a foreign pattern"
-        );
-        let step = (forces, f.as_mut_slice(), a.batch_values_mut(0));
-        self.assemble_values(&cells, k, Some(step));
-    }
-
-    /// The upper blocks (and a step's forces and upper Newmark blocks, when given; else the
-    /// lower blocks too, by mirroring).
-    fn assemble_values(&self, c: &Cells<'_>, k: &mut SparseMatrix<Mat3<f64>>, step: Option<StepOutput<'_>>) {
-        assert!(
-            Arc::ptr_eq(k.pattern(), &self.pattern),
+            Arc::ptr_eq(k.pattern(), &self.pattern) && k.batches() == 1,
             "cutfem: stiffness matrix has a foreign pattern"
         );
-        let (n, cells) = (self.pattern.rows(), c.grid.cells.len());
-        if let Some((r, rt)) = c.rotations {
-            assert!(
-                r.len() == cells && rt.len() == cells,
-                "cutfem: one rotation per cell"
-            );
-        }
+        c.check();
         // K is symmetric (every element block satisfies K_ji = K_ij^T, rotated or not, and so
         // do the Nitsche terms): compute the upper triangle, mirror the rest.
         let values = k.batch_values_mut(0);
-        let chunks = self.pattern.split_rows_mut(values, ROW_CHUNK);
-        let parallel = self.parallel();
-        let Some((fo, f, a)) = step else {
-            for_each_item(parallel, chunks, |(r0, vals)| self.upper_rows(c, r0, vals));
-            self.mirror_lower(values);
-            return;
-        };
-        assert!(
-            f.len() == n && fo.mass.len() == n,
-            "cutfem: forces of another size"
-        );
-        assert!(
-            fo.cell_forces.map_or(true, |cf| cf.len() == cells),
-            "cutfem: corner forces per cell"
-        );
         let rp = self.pattern.row_ptr();
-        let items: Vec<_> = chunks
-            .into_iter()
-            .zip(self.pattern.split_rows_mut(a, ROW_CHUNK))
-            .zip(f.chunks_mut(ROW_CHUNK))
-            .collect();
-        for_each_item(parallel, items, |(((r0, vals), (_, av)), fc)| {
-            self.upper_rows(c, r0, vals);
-            gpumat::simd::with_avx2(
-                #[inline(always)]
-                || {
-                    let (base, nw) = (rp[r0], &fo.newmark);
-                    for (o, out) in fc.iter_mut().enumerate() {
-                        let r = r0 + o;
-                        *out = self.node_force(&fo, r);
-                        let d = self.diag[r] as usize;
-                        for kk in d..rp[r + 1] {
-                            let m = if kk == d { nw.diagonal(fo.mass[r]) } else { nw.off };
-                            av[kk - base] = m.add(vals[kk - base].scale(nw.ck));
-                        }
-                    }
-                },
-            )
+        let chunks = self.pattern.split_rows_mut(values, ROW_CHUNK);
+        for_each_item(parallel, chunks, |(r0, vals)| {
+            self.upper_rows(c, r0, Values { base: rp[r0], vals })
         });
+        self.mirror_lower(parallel, values, None, None);
     }
 
     /// Whether the passes of this pattern run on the rayon pool (see [`for_each_item`]).
@@ -354,85 +293,124 @@ impl Assembler {
         self.pattern.nnz() >= gpumat::expr::PAR_THRESHOLD
     }
 
-    /// Each block below the diagonal of `values` from its mirror above it, in place.
-    fn mirror_lower(&self, values: &mut [Mat3<f64>]) {
+    /// Each block below the diagonal of `a` (and of `k`) from its mirror above it, in place;
+    /// with `rhs = (b, f, dt)`, also `b_r += dt f_r` for every row (a step's last pass).
+    fn mirror_lower(
+        &self,
+        parallel: bool,
+        a: &mut [Mat3<f64>],
+        k: Option<&mut [Mat3<f64>]>,
+        rhs: Option<ForcesIntoRhs<'_>>,
+    ) {
         let (n, rp) = (self.pattern.rows(), self.pattern.row_ptr());
-        let out = EntryWriter(values.as_mut_ptr(), values.len());
-        for_each_item(self.parallel(), (0..n.div_ceil(ROW_CHUNK)).collect(), |ci| {
-            for r in ci * ROW_CHUNK..((ci + 1) * ROW_CHUNK).min(n) {
-                for kk in rp[r]..self.diag[r] as usize {
-                    // SAFETY: the `kk` are distinct entries below the diagonal, each written by
-                    // one task; their mirrors lie on or above it, written in the finished pass
-                    // before this one and only read here, so no entry is both read and written.
-                    unsafe { out.write(kk, out.read(self.mirror[kk] as usize).transpose()) };
-                }
-            }
+        assert!(
+            a.len() == self.pattern.nnz() && k.as_ref().map_or(true, |k| k.len() == a.len()),
+            "cutfem: values of another pattern"
+        );
+        let aw = EntryWriter(a.as_mut_ptr(), a.len());
+        let kw = k.map(|k| EntryWriter(k.as_mut_ptr(), k.len()));
+        let (b, f, dt) = rhs.unwrap_or((&mut [], &[], 0.0));
+        assert!(
+            b.len() == f.len() && (b.is_empty() || b.len() == n),
+            "cutfem: vectors of another size"
+        );
+        let mut b_chunks: Vec<Option<&mut [Vec3<f64>]>> = b.chunks_mut(ROW_CHUNK).map(Some).collect();
+        b_chunks.resize_with(n.div_ceil(ROW_CHUNK), || None);
+        let items: Vec<_> = b_chunks.into_iter().enumerate().collect();
+        for_each_item(parallel, items, |(ci, mut bc)| {
+            gpumat::simd::with_avx2(
+                #[inline(always)]
+                || {
+                    let r0 = ci * ROW_CHUNK;
+                    let r1 = (r0 + ROW_CHUNK).min(n);
+                    for r in r0..r1 {
+                        for kk in rp[r]..self.diag[r] as usize {
+                            let m = self.mirror[kk] as usize;
+                            // SAFETY: the `kk` are distinct entries below the diagonal, each
+                            // written by the one task that owns its row; their mirrors lie on
+                            // or above it, written in the finished pass before this one and only
+                            // read here, so no entry is both read and written concurrently.
+                            unsafe {
+                                aw.write(kk, aw.read(m).transpose());
+                                if let Some(kw) = &kw {
+                                    kw.write(kk, kw.read(m).transpose());
+                                }
+                            }
+                        }
+                        if let Some(bc) = bc.as_deref_mut() {
+                            bc[r - r0] = bc[r - r0].add(f[r].scale(dt));
+                        }
+                    }
+                },
+            )
         });
     }
 
-    /// `m_r g` plus the corner forces of node `r`, summed in [`Assembler::cells_of`] order.
-    #[inline]
-    fn node_force(&self, fo: &Forces<'_>, r: usize) -> Vec3<f64> {
-        let mut acc = gpumat::Scalar::scale(fo.gravity, fo.mass[r]);
-        if let Some(cf) = fo.cell_forces {
-            for &(e, q) in self.cells_of(r) {
-                acc = acc + cf[e as usize][q as usize];
-            }
-        }
-        acc
-    }
-
-    /// The upper blocks (from each row's diagonal on) of the rows from `r0` into `vals` (the
-    /// values of those rows), in AVX2 registers where the CPU has them (the same operations
-    /// in the same order: the values do not depend on it).
-    fn upper_rows(&self, c: &Cells<'_>, r0: usize, vals: &mut [Mat3<f64>]) {
-        struct Rows<'a> {
+    /// The upper blocks (from each row's diagonal on) of the rows from `r0` into `sink`, in
+    /// AVX2 registers where the CPU has them (the same operations in the same order: the
+    /// values do not depend on it).
+    fn upper_rows<K: RowSink>(&self, c: &Cells<'_>, r0: usize, sink: K) {
+        struct Rows<'a, K> {
             asm: &'a Assembler,
             c: &'a Cells<'a>,
             r0: usize,
-            vals: &'a mut [Mat3<f64>],
+            sink: K,
         }
-        impl Kernel for Rows<'_> {
+        impl<K: RowSink> Kernel for Rows<'_, K> {
             type Output = ();
             #[inline(always)]
             fn run<S: Simd4>(self, s: S) {
-                self.asm.upper_rows_with(s, self.c, self.r0, self.vals)
+                self.asm.upper_rows_with(s, self.c, self.r0, self.sink)
             }
         }
         dispatch(Rows {
             asm: self,
             c,
             r0,
-            vals,
+            sink,
         })
     }
 
     #[inline(always)]
-    fn upper_rows_with<S: Simd4>(&self, s: S, c: &Cells<'_>, r0: usize, vals: &mut [Mat3<f64>]) {
+    fn upper_rows_with<S: Simd4, K: RowSink>(&self, s: S, c: &Cells<'_>, r0: usize, mut sink: K) {
         let rp = self.pattern.row_ptr();
-        let (base, r1) = (rp[r0], (r0 + ROW_CHUNK).min(self.pattern.rows()));
-        // plain loops (no iterator adapters), so that everything inlines into this function
-        // and is compiled with its target features
-        macro_rules! rows {
-            ($block:expr) => {
-                for r in r0..r1 {
-                    for kk in self.diag[r] as usize..rp[r + 1] {
-                        vals[kk - base] = $block(kk);
+        let r1 = (r0 + ROW_CHUNK).min(self.pattern.rows());
+        // everything called here is inlined into this function and compiled with its target
+        // features
+        for r in r0..r1 {
+            let d = self.diag[r] as usize;
+            let len = rp[r + 1] - d;
+            sink.row_start(r);
+            match (c.rotations, c.scale) {
+                (Some(rt), None) => {
+                    let acc = self.rotated_row::<S, false, K>(s, c, rt, &[], r, &mut sink);
+                    for (o, a) in acc.iter().enumerate().take(len) {
+                        sink.block(r, d + o, o == 0, Mat3::from_rows(a.map(|v| lanes3(s, v))));
                     }
                 }
-            };
-        }
-        match (c.rotations, c.scale) {
-            (Some((rot, rt)), None) => rows!(|kk| self.rotated_block::<S, false>(s, c, rot, rt, &[], kk)),
-            (Some((rot, rt)), Some(sc)) => rows!(|kk| self.rotated_block::<S, true>(s, c, rot, rt, sc, kk)),
-            (None, sc) => rows!(|kk| self.plain_block(c, sc, kk)),
+                (Some(rt), Some(sc)) => {
+                    let acc = self.rotated_row::<S, true, K>(s, c, rt, sc, r, &mut sink);
+                    for (o, a) in acc.iter().enumerate().take(len) {
+                        sink.block(r, d + o, o == 0, Mat3::from_rows(a.map(|v| lanes3(s, v))));
+                    }
+                }
+                (None, sc) => {
+                    let acc = self.plain_row(c, sc, r, &mut sink);
+                    for (o, a) in acc.iter().enumerate().take(len) {
+                        sink.block(r, d + o, o == 0, *a);
+                    }
+                }
+            }
+            sink.row_done(r);
         }
     }
 
-    /// The element blocks `(cell, 8 i + j)` summing into entry `kk`, in cell order.
+    /// The cells of row `r` with, for each, where its blocks `(i, j)` go among the row's blocks
+    /// from the diagonal on ([`Assembler::upper`]).
     #[inline(always)]
-    fn contributions(&self, kk: usize) -> &[(u32, u8)] {
-        &self.contrib[self.contrib_ptr[kk] as usize..self.contrib_ptr[kk + 1] as usize]
+    fn row_cells(&self, r: usize) -> (&[(u32, u8)], &[[u8; 8]]) {
+        let range = self.node_ptr[r] as usize..self.node_ptr[r + 1] as usize;
+        (&self.node_cells[range.clone()], &self.upper[range])
     }
 
     /// The Nitsche terms of element block `(e, i, j)`, Young's modulus scaled by `se`.
@@ -444,56 +422,84 @@ impl Assembler {
             .nitsche_block(&ci.boundary, n, i, j, c.m.lambda * se, c.m.mu * se, c.m.eta)
     }
 
-    /// Entry `kk` without rotation: the fixed-order sum of its element blocks (scaled by
-    /// `scale[e]`, plus the Nitsche terms of Dirichlet cells).
+    /// The blocks of row `r` from the diagonal on without rotation: each the sum of its
+    /// element blocks (scaled by `scale[e]`, plus the Nitsche terms of Dirichlet cells) in
+    /// cell order.
     #[inline(always)]
-    fn plain_block(&self, c: &Cells<'_>, scale: Option<&[f64]>, kk: usize) -> Mat3<f64> {
-        let mut acc = Mat3::default();
-        for &(e, ij) in self.contributions(kk) {
-            let (e, i, j) = (e as usize, (ij / 8) as usize, (ij % 8) as usize);
-            let mut b = c.blocks.get(e, i, j);
+    fn plain_row<K: RowSink>(
+        &self,
+        c: &Cells<'_>,
+        scale: Option<&[f64]>,
+        r: usize,
+        sink: &mut K,
+    ) -> [Mat3<f64>; MAX_UPPER] {
+        let mut acc = [Mat3::default(); MAX_UPPER];
+        let (cells, upper) = self.row_cells(r);
+        for (&(e, i), up) in cells.iter().zip(upper) {
+            let (e, i) = (e as usize, i as usize);
+            sink.cell(e, i);
             let se = scale.map_or(1.0, |s| s[e]);
-            if se != 1.0 {
-                b = b * se;
+            for (j, &o) in up.iter().enumerate() {
+                if o == NO_BLOCK {
+                    continue;
+                }
+                let mut b = c.blocks.get(e, i, j);
+                if se != 1.0 {
+                    b = b * se;
+                }
+                if c.dirichlet[e] {
+                    b = b + self.nitsche(c, e, i, j, se);
+                }
+                acc[o as usize] = acc[o as usize] + b;
             }
-            if c.dirichlet[e] {
-                b = b + self.nitsche(c, e, i, j, se);
-            }
-            acc = acc + b;
         }
         acc
     }
 
-    /// Entry `kk` of the corotated stiffness: the fixed-order sum of its element blocks
-    /// `R_e (s_e K_ij) R_e^T` plus the Nitsche terms of Dirichlet cells ([`rotate_add`]).
+    /// The blocks of row `r` from the diagonal on of the corotated stiffness, each the sum of
+    /// its element blocks `R_e (s_e K_ij) R_e^T` plus the Nitsche terms of Dirichlet cells
+    /// ([`rotate_add`]) in cell order, as rows of vectors.
     #[inline(always)]
-    fn rotated_block<S: Simd4, const SCALE: bool>(
+    #[allow(clippy::too_many_arguments)]
+    fn rotated_row<S: Simd4, const SCALE: bool, K: RowSink>(
         &self,
         s: S,
         c: &Cells<'_>,
-        rot: &[Mat3<f64>],
         rt: &[PaddedBlock],
         scale: &[f64],
-        kk: usize,
-    ) -> Mat3<f64> {
-        let mut acc = [s.splat(0.0); 3];
-        for &(e, ij) in self.contributions(kk) {
-            let (e, i, j) = (e as usize, (ij / 8) as usize, (ij % 8) as usize);
-            let b = &c.blocks.cell(e)[i][j];
-            let (r, rt) = (&rot[e], &rt[e]);
+        r: usize,
+        sink: &mut K,
+    ) -> [[S::V; 3]; MAX_UPPER] {
+        let mut acc = [[s.splat(0.0); 3]; MAX_UPPER];
+        let (cells, upper) = self.row_cells(r);
+        for (&(e, i), up) in cells.iter().zip(upper) {
+            let (e, i) = (e as usize, i as usize);
+            sink.cell(e, i);
+            // the blocks as padded columns: the table the cell sweep reads too
+            let (bs, rt) = (&c.blocks.cell_columns(e)[i], &rt[e]);
             if SCALE || c.dirichlet[e] {
                 // the rarer cells: scaled blocks, Nitsche terms
                 let se = if SCALE { scale[e] } else { 1.0 };
-                let b = if se != 1.0 { *b * se } else { *b };
-                let nitsche = c.dirichlet[e].then(|| self.nitsche(c, e, i, j, se));
-                rotate_add(s, &mut acc, r, rt, &b, nitsche.as_ref());
+                for (j, &o) in up.iter().enumerate() {
+                    if o != NO_BLOCK {
+                        let b = if se != 1.0 {
+                            bs[j].map(|l| l.map(|x| x * se))
+                        } else {
+                            bs[j]
+                        };
+                        let nitsche = c.dirichlet[e].then(|| self.nitsche(c, e, i, j, se));
+                        rotate_add(s, &mut acc[o as usize], rt, &b, nitsche.as_ref());
+                    }
+                }
             } else {
-                rotate_add(s, &mut acc, r, rt, b, None);
+                for (j, &o) in up.iter().enumerate() {
+                    if o != NO_BLOCK {
+                        rotate_add(s, &mut acc[o as usize], rt, &bs[j], None);
+                    }
+                }
             }
         }
-        Mat3 {
-            m: [lanes3(s, acc[0]), lanes3(s, acc[1]), lanes3(s, acc[2])],
-        }
+        acc
     }
 
     /// Lumped mass per dof: `density * sum_e w_v(e, i)` (thesis eq. 2.5.14 lumped, sec. 4.4.2).
@@ -514,24 +520,75 @@ impl Assembler {
     }
 }
 
-/// What the stiffness passes read per cell: `rotations` is `(R_e, padded R_e^T)`.
+/// The inputs of [`Assembler::assemble_stiffness`]: grid, material, element blocks, rotations,
+/// Dirichlet cells, stiffness scale.
+pub(crate) type StiffnessInputs<'a> = (
+    &'a Grid,
+    &'a Material,
+    &'a ElementBlocks,
+    Option<&'a [Mat3<f64>]>,
+    &'a [bool],
+    Option<&'a [f64]>,
+);
+
+/// `(b, f, dt)` of a step's last pass: `b += dt f`.
+type ForcesIntoRhs<'a> = (&'a mut [Vec3<f64>], &'a [Vec3<f64>], f64);
+
+/// What the stiffness passes read per cell.
 struct Cells<'a> {
     grid: &'a Grid,
     m: &'a Material,
     blocks: &'a ElementBlocks,
-    rotations: Option<(&'a [Mat3<f64>], &'a [PaddedBlock])>,
+    /// the padded transposed rotations (`None`: no corotation)
+    rotations: Option<&'a [PaddedBlock]>,
     dirichlet: &'a [bool],
     scale: Option<&'a [f64]>,
 }
 
-/// What a step's row sweep reads for the node forces and Newmark blocks, and the forces and
-/// values of `A` it writes.
-type StepOutput<'a> = (Forces<'a>, &'a mut [Vec3<f64>], &'a mut [Mat3<f64>]);
+impl Cells<'_> {
+    /// Checks the sizes of the per-cell data.
+    fn check(&self) {
+        let nc = self.grid.cells.len();
+        if let Some(rt) = self.rotations {
+            assert!(rt.len() == nc, "cutfem: one rotation per cell");
+        }
+        assert!(
+            self.dirichlet.len() == nc && self.scale.map_or(true, |s| s.len() == nc),
+            "cutfem: cell data of another size"
+        );
+    }
+}
 
-/// What the node forces and Newmark blocks of [`Assembler::assemble_upper_with_forces`] read.
-struct Forces<'a> {
-    mass: &'a [f64],
-    gravity: Vec3<f64>,
-    cell_forces: Option<&'a [[Vec3<f64>; 8]]>,
-    newmark: Coefficients,
+/// Where the row sweep ([`Assembler::upper_rows`]) puts the blocks it computes. The methods
+/// are inlined into the sweep's vector code. Per row `r`: `row_start`, `cell` for each cell
+/// of the row (corner `i` of cell `e`, in [`Assembler::cells_of`] order), `block` for each
+/// block from the diagonal on, `row_done`.
+trait RowSink {
+    /// Before row `r`.
+    fn row_start(&mut self, r: usize);
+    /// Cell `e` of the row, whose corner `i` is the row's node.
+    fn cell(&mut self, e: usize, i: usize);
+    /// Block `kk` of row `r`, on (`diagonal`) or above the diagonal.
+    fn block(&mut self, r: usize, kk: usize, diagonal: bool, k: Mat3<f64>);
+    /// After the blocks of row `r`.
+    fn row_done(&mut self, r: usize);
+}
+
+/// The values of `K` of the rows from the one whose first entry is `base`.
+struct Values<'a> {
+    base: usize,
+    vals: &'a mut [Mat3<f64>],
+}
+
+impl RowSink for Values<'_> {
+    #[inline(always)]
+    fn block(&mut self, _r: usize, kk: usize, _diagonal: bool, k: Mat3<f64>) {
+        self.vals[kk - self.base] = k;
+    }
+    #[inline(always)]
+    fn row_start(&mut self, _r: usize) {}
+    #[inline(always)]
+    fn cell(&mut self, _e: usize, _i: usize) {}
+    #[inline(always)]
+    fn row_done(&mut self, _r: usize) {}
 }

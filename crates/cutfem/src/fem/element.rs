@@ -120,6 +120,13 @@ impl StiffnessTables {
         eta: f64,
     ) -> Mat3<f64> {
         let mut k = Mat3::default();
+        // `grad N_j` vanishes at corner `i` (and `grad N_i` at `j`) unless the corners are equal
+        // or neighbours along an edge: the traction blocks of the other pairs are zero and
+        // subtracting them would not change `k` (a difference from +0 is +0 or nonzero), so
+        // they are skipped
+        if (i ^ j).count_ones() > 1 {
+            return k;
+        }
         if wb[i] != 0.0 {
             k = k - self.traction_block(j, i, n, lambda, mu) * wb[i];
         }
@@ -149,13 +156,19 @@ pub struct ElementBlocks {
     /// per cell: its index into `sets` (0 for a full cell)
     set_of: Vec<u32>,
     /// the same blocks transposed and padded ([`padded_transpose`]): their columns as
-    /// vectors, for [`corotation_forces`]
+    /// vectors, for the cell sweep of a step (`assembly::cells`)
     columns: Vec<[[PaddedBlock; 8]; 8]>,
 }
 
 impl ElementBlocks {
     /// Builds the blocks of every cell of `grid` for `(lambda, mu)`.
     pub fn new(tables: &StiffnessTables, grid: &Grid, lambda: f64, mu: f64) -> Self {
+        Self::build(tables, grid, lambda, mu, true)
+    }
+
+    /// [`ElementBlocks::new`], on the rayon pool when `parallel` (else on the calling thread
+    /// alone; the same values).
+    pub(crate) fn build(tables: &StiffnessTables, grid: &Grid, lambda: f64, mu: f64, parallel: bool) -> Self {
         let full = [grid.h().powi(3) / 8.0; 8];
         let block_set = |w: &[f64; 8]| -> [[Mat3<f64>; 8]; 8] {
             std::array::from_fn(|i| std::array::from_fn(|j| tables.block(w, i, j, lambda, mu)))
@@ -173,7 +186,11 @@ impl ElementBlocks {
                 });
             }
         }
-        let sets: Vec<[[Mat3<f64>; 8]; 8]> = weights.par_iter().map(|w| block_set(w)).collect();
+        let sets: Vec<[[Mat3<f64>; 8]; 8]> = if parallel {
+            weights.par_iter().map(|w| block_set(w)).collect()
+        } else {
+            weights.iter().map(|w| block_set(w)).collect()
+        };
         let columns = sets
             .iter()
             .map(|set| set.map(|row| row.map(|b| padded_transpose(&b))))
@@ -396,24 +413,24 @@ pub fn padded_transpose(r: &Mat3<f64>) -> PaddedBlock {
 }
 
 /// `acc += R B R^T (+ extra)` (the hot spot of the corotated assembly) with the vectors of
-/// `s`: from `R`, its padded transpose `rt` ([`padded_transpose`]) and `B`, the rows
-/// `t_k = sum_l b_kl rt_l` of `B R^T`, then the rows `o_i = sum_k r_ik t_k` of `R B R^T`, then
-/// `acc_i += o_i + extra_i` (lane 3 is padding). Lane by lane these are the operations of
-/// [`rotate_block`] in the same order (no fused multiply-add), so the values are bit-identical
-/// to it on every backend.
+/// `s`: from the padded transposes `rt` of `R` and `bt` of `B` ([`padded_transpose`]), the
+/// rows `t_k = sum_l b_kl rt_l` of `B R^T` (`b_kl = bt[l][k]`), then the rows
+/// `o_i = sum_k r_ik t_k` of `R B R^T` (`r_ik = rt[k][i]`), then `acc_i += o_i + extra_i`
+/// (lane 3 is padding). Lane by lane these are the operations of [`rotate_block`] in the same
+/// order (no fused multiply-add), so the values are bit-identical to it on every backend.
 #[inline(always)]
 pub fn rotate_add<S: Simd4>(
     s: S,
     acc: &mut [S::V; 3],
-    r: &Mat3<f64>,
     rt: &PaddedBlock,
-    b: &Mat3<f64>,
+    bt: &PaddedBlock,
     extra: Option<&Mat3<f64>>,
 ) {
     let x = [s.load(&rt[0]), s.load(&rt[1]), s.load(&rt[2])];
-    let t = [comb(s, &b.m[0], &x), comb(s, &b.m[1], &x), comb(s, &b.m[2], &x)];
+    let row = |k: usize| [bt[0][k], bt[1][k], bt[2][k]];
+    let t = [comb(s, &row(0), &x), comb(s, &row(1), &x), comb(s, &row(2), &x)];
     for i in 0..3 {
-        let mut o = comb(s, &r.m[i], &t);
+        let mut o = comb(s, &[rt[0][i], rt[1][i], rt[2][i]], &t);
         if let Some(n) = extra {
             let n = &n.m[i];
             o = s.add(o, s.set([n[0], n[1], n[2], 0.0]));
@@ -424,7 +441,7 @@ pub fn rotate_add<S: Simd4>(
 
 /// `a[0] v[0] + a[1] v[1] + a[2] v[2]`, lane-wise, left to right.
 #[inline(always)]
-fn comb<S: Simd4>(s: S, a: &[f64; 3], v: &[S::V; 3]) -> S::V {
+pub(crate) fn comb<S: Simd4>(s: S, a: &[f64; 3], v: &[S::V; 3]) -> S::V {
     s.add(
         s.add(s.mul(s.splat(a[0]), v[0]), s.mul(s.splat(a[1]), v[1])),
         s.mul(s.splat(a[2]), v[2]),
@@ -441,47 +458,6 @@ pub fn lanes3<S: Simd4>(s: S, v: S::V) -> [f64; 3] {
 /// `i ^ j` of opposite corners of a cell. No corner has nonzero gradients of both `N_i` and
 /// `N_j`, so under the corner rule their stiffness and Nitsche blocks are exactly zero.
 pub const OPPOSITE: usize = 7;
-
-/// The corotation forces `-(R sum_j K_ij (R^T x_j - x_j)) sc` (eq. 4.4.6/4.4.10) at the eight
-/// corners of a cell from the columns `kc` of its blocks ([`ElementBlocks::cell_columns`]), its
-/// rotation `r` and padded transpose `rt` ([`padded_transpose`]), the corner offsets `x`
-/// ([`corner_offsets`]) and the stiffness scale `sc`, with the vectors of `s`. Lane `p` of each
-/// vector step is the component `p` of the textbook formula with the same operations in the
-/// same order (`R^T x = sum_k R_k x_k` over the rows `R_k`, `K d = sum_l K_(.l) d_l` over the
-/// columns), so the values equal those of plain loops bit for bit. The zero blocks of opposite
-/// corners are skipped (a sum that starts at +0 is not changed by adding zeros).
-#[inline(always)]
-pub fn corotation_forces<S: Simd4>(
-    s: S,
-    kc: &[[PaddedBlock; 8]; 8],
-    r: &Mat3<f64>,
-    rt: &PaddedBlock,
-    x: &[Vec3<f64>; 8],
-    sc: f64,
-) -> [Vec3<f64>; 8] {
-    let load3 = |v: &PaddedBlock| [s.load(&v[0]), s.load(&v[1]), s.load(&v[2])];
-    let m = &r.m;
-    let row = |p: usize| s.set([m[p][0], m[p][1], m[p][2], 0.0]);
-    let rows = [row(0), row(1), row(2)];
-    let mut d = [[0.0; 3]; 8];
-    for j in 0..8 {
-        let xj = x[j].to_array();
-        d[j] = lanes3(s, s.sub(comb(s, &xj, &rows), s.set([xj[0], xj[1], xj[2], 0.0])));
-    }
-    let rtv = load3(rt);
-    let mut f = [Vec3::default(); 8];
-    for i in 0..8 {
-        let mut sum = s.splat(0.0);
-        for j in 0..8 {
-            if i ^ j != OPPOSITE {
-                sum = s.add(sum, comb(s, &d[j], &load3(&kc[i][j])));
-            }
-        }
-        let rs = lanes3(s, comb(s, &lanes3(s, sum), &rtv));
-        f[i] = Vec3::new(-rs[0] * sc, -rs[1] * sc, -rs[2] * sc);
-    }
-    f
-}
 
 #[cfg(test)]
 mod tests {
@@ -513,27 +489,15 @@ mod tests {
         for _ in 0..50 {
             let (r, b, n) = (mat(&mut next), mat(&mut next), mat(&mut next));
             let mut acc = [s.splat(0.0); 3];
-            rotate_add(s, &mut acc, &r, &padded_transpose(&r), &b, Some(&n));
+            rotate_add(
+                s,
+                &mut acc,
+                &padded_transpose(&r),
+                &padded_transpose(&b),
+                Some(&n),
+            );
             let got = Mat3::from_rows(acc.map(|v| lanes3(s, v)));
             assert_eq!(bits(&got), bits(&(Mat3::default() + (rotate_block(&r, &b) + n))));
-        }
-        // corotation forces against the plain formula
-        let x = corner_offsets(0.25);
-        let k: [[Mat3<f64>; 8]; 8] = std::array::from_fn(|_| std::array::from_fn(|_| mat(&mut next)));
-        let kc = k.map(|row| row.map(|b| padded_transpose(&b)));
-        let r = mat(&mut next);
-        let got = corotation_forces(s, &kc, &r, &padded_transpose(&r), &x, 1.5);
-        for i in 0..8 {
-            let mut sum = Vec3::default();
-            for j in 0..8 {
-                if i ^ j != OPPOSITE {
-                    sum = sum + k[i][j] * (r.transpose() * x[j] - x[j]);
-                }
-            }
-            assert_eq!(
-                got[i].to_array().map(f64::to_bits),
-                (-(r * sum) * 1.5).to_array().map(f64::to_bits)
-            );
         }
         // four rotations at once, with a collapsed cell (identity) among them
         let mut u = [[Vec3::default(); 8]; 4];
@@ -556,6 +520,34 @@ mod tests {
             assert_eq!(bits(&got[l]), bits(&want), "cell {l}");
         }
         assert_eq!(got[3], Mat3::identity());
+    }
+
+    /// The Nitsche blocks of corners that share no edge are skipped: the same bits as the full
+    /// formula.
+    #[test]
+    fn nitsche_blocks_skip_only_zero_terms() {
+        let mut next = values(3);
+        let t = StiffnessTables::new(0.25);
+        for _ in 0..20 {
+            let wb: [f64; 8] = std::array::from_fn(|_| if next() < -0.5 { 0.0 } else { next().abs() });
+            let n = Vec3::new(next(), next(), next());
+            let (lambda, mu, eta) = (1.0 + next().abs(), 1.0 + next().abs(), 10.0);
+            for i in 0..8 {
+                for j in 0..8 {
+                    let mut k = Mat3::default();
+                    if wb[i] != 0.0 {
+                        k = k - t.traction_block(j, i, n, lambda, mu) * wb[i];
+                    }
+                    if wb[j] != 0.0 {
+                        k = k - t.traction_block(i, j, n, lambda, mu).transpose() * wb[j];
+                    }
+                    if i == j {
+                        k = k + Mat3::from_scalar(eta * wb[i]);
+                    }
+                    assert_eq!(bits(&t.nitsche_block(&wb, n, i, j, lambda, mu, eta)), bits(&k));
+                }
+            }
+        }
     }
 
     #[test]

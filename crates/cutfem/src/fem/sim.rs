@@ -9,15 +9,22 @@
 //! `v' = (u' - u)/(theta dt) - (1-theta)/theta v`.
 //!
 //! (The thesis prints `+ (1-theta) dt K` in `b`; deriving the theta-scheme for
-//! `M v' + D v + K u = f`, `u' = v` gives the minus sign used here.) `A` and `b` are filled in
-//! one fused pass over the rows of `K` ([`newmark_system`]; in a grid step the stiffness sweep
-//! writes the upper blocks of `A` while they are in cache and the Newmark pass the rest, see
-//! [`super::assembly`]); `A u' = b` is solved by preconditioned CG warm-started at
+//! `M v' + D v + K u = f`, `u' = v` gives the minus sign used here.) From a stored `K`, `A` and
+//! `b` are filled in one pass over its rows ([`newmark_system`], the tet simulation's path). A
+//! grid step stores no `K`: its cell sweep computes `cu K u` and the corotation force cell by
+//! cell, its row sweep writes the blocks of `A` on and above the diagonal straight from the
+//! blocks of `K` and the rest of `b`, and a last pass mirrors the lower blocks of `A` and adds
+//! the forces (see [`super::assembly`]). [`Simulation::assemble_system`] (the adjoint's
+//! recomputed steps) keeps `K` as well; after a [`Simulation::step`] [`Simulation::stiffness`]
+//! computes it on first use. `A u' = b` is solved by preconditioned CG warm-started at
 //! `u + dt v` (4.4.18), falling back to a sparse Cholesky factorization when CG fails; the
 //! preconditioner (block-Jacobi, block IC(0) or a reused rest-state Cholesky factor) is chosen
 //! in [`SolverSettings`] (see [`super::solver`]).
 
-use super::assembly::{fill_newmark, Assembler, CellWork, ElementBlocks, Material};
+mod kept;
+
+use super::assembly::{fill_newmark, Assembler, CellWork, Coefficients, ElementBlocks, Material};
+use super::assembly::{StepOutput, StepState};
 use super::collision::{add_ground_forces, crossings, Crossing};
 use super::element::POLAR_ITERATIONS;
 use super::grid::Grid;
@@ -26,6 +33,7 @@ use super::solver::LinearSolver;
 pub use super::solver::{solve, Preconditioner, SolverSettings};
 use crate::error::Error;
 use gpumat::{Mat3, Matrix, SparseMatrix, Vec3};
+use kept::KeptStiffness;
 use std::time::Instant;
 
 /// What one step did.
@@ -46,8 +54,9 @@ pub struct StepInfo {
     /// seconds in assembly (rotations, stiffness, corotation forces, A and b)
     pub assembly_s: f64,
     /// the part of `assembly_s` spent on rotations and stiffness values (the thesis' "matrix
-    /// assembly"; in a grid step the same sweeps also compute the corotation and body forces
-    /// and the upper blocks of `A`, counted here)
+    /// assembly"; in a grid step the cell and row sweeps, which also compute `K u`, the
+    /// corotation and body forces, the upper blocks of `A` and most of `b`, all counted here;
+    /// a step's `K` values go into `A` without being stored)
     pub stiffness_s: f64,
     /// seconds in collision forces
     pub collision_s: f64,
@@ -78,7 +87,9 @@ pub struct Simulation {
     pub steps: usize,
     /// solver settings
     pub solver: SolverSettings,
-    k: SparseMatrix<Mat3<f64>>,
+    /// `K` of the last assembly: kept by [`Simulation::assemble_system`], computed on first use
+    /// after a step ([`Simulation::stiffness`])
+    k: KeptStiffness,
     a: SparseMatrix<Mat3<f64>>,
     blocks: Option<ElementBlocks>,
     linear: LinearSolver,
@@ -110,7 +121,6 @@ impl Simulation {
         let dirichlet = dirichlet_cells(&grid, &model)?;
         let crossings = crossings(&grid);
         let n = grid.dofs();
-        let k = SparseMatrix::zeros(assembler.pattern().clone(), 1);
         let a = SparseMatrix::zeros(assembler.pattern().clone(), 1);
         let linear = LinearSolver::new(Some(&grid.positions));
         let mut sim = Self {
@@ -126,7 +136,7 @@ impl Simulation {
             crossings,
             steps: 0,
             solver: SolverSettings::default(),
-            k,
+            k: KeptStiffness::default(),
             a,
             blocks: None,
             linear,
@@ -149,6 +159,7 @@ impl Simulation {
         self.steps = 0;
         self.rotations = None;
         self.contact.clear();
+        self.k.forget();
         Ok(())
     }
 
@@ -173,6 +184,7 @@ impl Simulation {
             self.mass = self.assembler.lumped_mass(&self.grid, model.density);
         }
         self.model = model;
+        self.k.forget();
         Ok(())
     }
 
@@ -219,12 +231,14 @@ impl Simulation {
         }
     }
 
-    /// Writes the stiffness values (rotated when `corotation`, with Nitsche terms) into
-    /// `self.k`; returns the rotations used and the element blocks (for the corotation forces).
+    /// Writes the stiffness values (rotated when `corotation`, with Nitsche terms) into `K`
+    /// (stored in `self.k`); returns the rotations used and the element blocks (for the
+    /// corotation forces).
     fn assemble_stiffness(&mut self, corotation: bool) -> (Option<Vec<Mat3<f64>>>, ElementBlocks) {
         let m = self.material();
         let blocks = self.blocks();
         let rot = corotation.then(|| self.assembler.rotations(&self.grid, &self.u, POLAR_ITERATIONS));
+        let mut k = self.k.buffer(self.assembler.pattern());
         self.assembler.assemble_stiffness(
             &self.grid,
             &m,
@@ -232,59 +246,75 @@ impl Simulation {
             rot.as_deref(),
             &self.dirichlet,
             self.model.stiffness_scale.as_deref(),
-            &mut self.k,
+            &mut k,
         );
+        self.k.keep(k);
         (rot, blocks)
     }
 
-    /// Stiffness values and elastic forces for the current state: the blocks of `K` (and of the
-    /// Newmark matrix `A`) on and above the diagonal into `self.k` (`self.a`), body + corotation
-    /// forces into `self.f`, in one sweep over the cells (rotations and corner forces) and one
-    /// over the rows, reusing the buffers of the last step; the Newmark pass of
-    /// [`Simulation::assemble_system`] completes `K` and `A`. Returns the seconds spent, all of
-    /// it counted as rotations and stiffness (the forces and the upper blocks of `A` are
-    /// computed in the same sweeps).
-    fn assemble(&mut self) -> f64 {
+    /// The cell and row sweeps of a step's assembly ([`super::assembly`]) for the current state
+    /// into the buffers of the last step: the upper blocks of `A`, `f = M g`, `b` without
+    /// `dt f` (and with `keep_k` the upper blocks of `K`, returned for the last pass to
+    /// complete). Returns the seconds spent, all counted as rotations and stiffness.
+    fn assemble(&mut self, keep_k: bool) -> (f64, Option<SparseMatrix<Mat3<f64>>>) {
         let t = Instant::now();
         let m = self.material();
         let blocks = self.blocks();
+        let mut k = if keep_k {
+            Some(self.k.buffer(self.assembler.pattern()))
+        } else {
+            self.k.forget();
+            None
+        };
         let scale = self.model.stiffness_scale.as_deref();
-        let rot = self.model.corotation.then(|| {
-            let mut rot = self.rotations.take().unwrap_or_default();
-            self.assembler.rotations_and_cell_forces(
-                &self.grid,
-                &self.u,
-                POLAR_ITERATIONS,
-                &blocks,
-                scale,
-                &mut rot,
-                &mut self.cell_work,
-            );
-            rot
-        });
-        self.assembler.assemble_upper_with_forces(
+        let nw = Coefficients::new(&self.model);
+        let mut rot = self
+            .model
+            .corotation
+            .then(|| self.rotations.take().unwrap_or_default());
+        self.assembler.rotations_and_cell_rhs(
+            &self.grid,
+            &m,
+            &self.u,
+            (nw.cu, nw.dt),
+            POLAR_ITERATIONS,
+            &blocks,
+            &self.dirichlet,
+            scale,
+            rot.as_mut(),
+            &mut self.cell_work,
+        );
+        let state = StepState {
+            model: &self.model,
+            mass: &self.mass,
+            u: &self.u,
+            v: &self.v,
+        };
+        self.assembler.assemble_step(
             &self.grid,
             &m,
             &blocks,
-            rot.as_deref().map(|r| (r, &self.cell_work)),
+            rot.is_some(),
+            &self.cell_work,
             &self.dirichlet,
             scale,
-            &mut self.k,
-            &self.mass,
-            self.model.gravity,
-            &mut self.f,
-            &self.model,
-            &mut self.a,
+            &state,
+            StepOutput {
+                k: k.as_mut(),
+                a: &mut self.a,
+                b: &mut self.b,
+                f: &mut self.f,
+            },
         );
         self.blocks = Some(blocks);
         self.rotations = rot;
-        t.elapsed().as_secs_f64()
+        (t.elapsed().as_secs_f64(), k)
     }
 
     /// Advances one time step: [`Simulation::assemble_system`], then the solve and the
     /// velocity update.
     pub fn step(&mut self) -> Result<StepInfo, Error> {
-        let mut info = self.assemble_system();
+        let mut info = self.assemble_system_with(false);
         let (dt, theta) = (self.model.dt, self.model.theta);
 
         let t3 = Instant::now();
@@ -308,13 +338,20 @@ impl Simulation {
 
     /// The stages of a step before the solve, for the current state `(u, v)`: rotations and
     /// stiffness (4.4.1), corotation, body and external forces, ground forces (2.8), then the Newmark
-    /// matrix `A` and right-hand side `b` (2.6.2). The adjoint pass calls it to recompute `A`
-    /// at a stored state instead of storing it (thesis sec. 5.7).
+    /// matrix `A` and right-hand side `b` (2.6.2), keeping the stiffness matrix `K`
+    /// ([`Simulation::stiffness`]). The adjoint pass calls it to recompute `A` and `K` at a
+    /// stored state instead of storing them (thesis sec. 5.7).
     pub fn assemble_system(&mut self) -> StepInfo {
+        self.assemble_system_with(true)
+    }
+
+    /// [`Simulation::assemble_system`], storing `K` only when `keep_k`.
+    pub(crate) fn assemble_system_with(&mut self, keep_k: bool) -> StepInfo {
         let mut info = StepInfo::default();
         let (dt, theta) = (self.model.dt, self.model.theta);
         let t0 = Instant::now();
-        info.stiffness_s = self.assemble();
+        let (stiffness_s, mut k) = self.assemble(keep_k);
+        info.stiffness_s = stiffness_s;
         if let Some(e) = &self.model.external_force {
             e.add_to(&mut self.f);
         }
@@ -339,17 +376,12 @@ impl Simulation {
         info.collision_s = t1.elapsed().as_secs_f64();
 
         let t2 = Instant::now();
-        // completes K (the lower blocks) while it writes A and b
-        self.assembler.newmark(
-            &self.model,
-            &self.mass,
-            &mut self.k,
-            &self.u,
-            &self.v,
-            &self.f,
-            &mut self.a,
-            &mut self.b,
-        );
+        // the lower blocks of A (and K), b += dt f
+        self.assembler
+            .finish_step(dt, &self.f, k.as_mut(), &mut self.a, &mut self.b);
+        if let Some(k) = k {
+            self.k.keep(k);
+        }
         if let Some(ground) = &self.model.ground {
             self.add_contact_stiffness(&contact, ground.normal, theta * dt);
         }
@@ -389,7 +421,7 @@ impl Simulation {
         }
         let mut x = Matrix::zeros(self.grid.dofs(), 1, 1);
         let t = Instant::now();
-        let (iterations, residual, fallback) = solve(&self.k, &self.f, &mut x, &self.solver)?;
+        let (iterations, residual, fallback) = solve(self.stiffness(), &self.f, &mut x, &self.solver)?;
         self.u = x;
         Ok(StepInfo {
             iterations,
@@ -404,7 +436,7 @@ impl Simulation {
     /// `-R K (R^T x - x)`), without body or contact forces. Assembles the stiffness.
     pub fn elastic_force(&mut self) -> Matrix<Vec3<f64>> {
         let (rot, blocks) = self.assemble_stiffness(self.model.corotation);
-        let mut f = Matrix::eval(-(&self.k * &self.u));
+        let mut f = Matrix::eval(-(self.stiffness() * &self.u));
         if let Some(r) = &rot {
             self.assembler.add_corotation_forces(
                 &self.grid,
@@ -445,7 +477,10 @@ impl Simulation {
         self.blocks.as_ref()
     }
 
-    /// The force vector `f` of the last assembly (body, corotation and contact forces).
+    /// The force vector `f` of the last assembly: body, external and contact forces (the
+    /// elastic forces, corotation included, enter `b` cell by cell and are not stored; see
+    /// [`Assembler::add_corotation_forces`] and [`Simulation::elastic_force`]). After
+    /// [`Simulation::solve_static`]: the body and external forces.
     pub fn force(&self) -> &Matrix<Vec3<f64>> {
         &self.f
     }
@@ -466,9 +501,26 @@ impl Simulation {
         self.linear.reset();
     }
 
-    /// The stiffness matrix of the last assembly.
+    /// The stiffness matrix of the last assembly (corotated at its rotations when the model
+    /// says so, with the Nitsche terms), for the current model. [`Simulation::assemble_system`]
+    /// keeps it; after a [`Simulation::step`] (which does not need it), or a change of the
+    /// model, it is computed here on first use, on the calling thread alone (a plain
+    /// [`Assembler::assemble_stiffness`], the same values), and kept until the next assembly.
     pub fn stiffness(&self) -> &SparseMatrix<Mat3<f64>> {
-        &self.k
+        self.k.get_or_compute(|| {
+            let (m, tables) = (self.material(), self.assembler.tables());
+            let mut fresh = None;
+            let blocks = match &self.blocks {
+                Some(b) if b.lambda == m.lambda && b.mu == m.mu => b,
+                _ => &*fresh.insert(ElementBlocks::build(tables, &self.grid, m.lambda, m.mu, false)),
+            };
+            let mut k = SparseMatrix::zeros(self.assembler.pattern().clone(), 1);
+            let rotations = self.rotations.as_deref().filter(|_| self.model.corotation);
+            let scale = self.model.stiffness_scale.as_deref();
+            let inputs = (&self.grid, &m, blocks, rotations, &self.dirichlet[..], scale);
+            self.assembler.assemble_stiffness_serial(inputs, &mut k);
+            k
+        })
     }
     /// The Newmark matrix `A` of the last step.
     pub fn newmark_matrix(&self) -> &SparseMatrix<Mat3<f64>> {
@@ -479,9 +531,10 @@ impl Simulation {
     pub fn kinetic_energy(&self) -> f64 {
         0.5 * self.mass.ex().cwise_mul(self.v.ex().cwise_squared_norm()).sum()
     }
-    /// Elastic energy `1/2 u^T K u` of the last assembled (unrotated, or rotated) stiffness.
+    /// Elastic energy `1/2 u^T K u` of the last assembled (unrotated, or rotated) stiffness
+    /// ([`Simulation::stiffness`]).
     pub fn elastic_energy(&self) -> f64 {
-        0.5 * self.u.ex().dot(&self.k * &self.u)
+        0.5 * self.u.ex().dot(self.stiffness() * &self.u)
     }
     /// Gravitational potential `-sum m g . u` (relative to the reference configuration).
     pub fn gravity_energy(&self) -> f64 {

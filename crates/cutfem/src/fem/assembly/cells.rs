@@ -1,12 +1,25 @@
 //! The cell sweep of a step: per cell, the rotation `R_e` (eq. 4.4.8-4.4.9), its padded
-//! transpose (for [`rotate_add`](super::super::element::rotate_add)) and the corotation forces at
-//! the eight corners (eq. 4.4.6/4.4.10), computed while the cell's blocks are at hand.
+//! transpose (for [`rotate_add`](super::super::element::rotate_add)) and the cell's share of the
+//! Newmark right-hand side at its eight corners, computed while the cell's blocks are at hand.
+//!
+//! The right-hand side `b = cm M u + cu K u + cv M v + dt f` (see [`super::newmark`]) holds
+//! the stiffness twice: in `cu K u` and in the corotation force
+//! `f_rot,i = -sum_j R K_ij (R^T x_j - x_j)` (eq. 4.4.6/4.4.10). Both are one product per cell:
+//! with `K u = sum_e (R_e s_e K(e) R_e^T + N(e)) u` (`s_e` the cell's stiffness scale, `N(e)`
+//! its Nitsche blocks, added after the rotation), the cell's share at corner `i` is
+//!
+//! `c_i = s_e R sum_j K_ij z_j + cu sum_j N_ij u_j`, `z_j = cu R^T u_j - dt (R^T x_j - x_j)`,
+//!
+//! and `b_r = cm m_r u_r + cv m_r v_r + sum_(e, q at r) c_(e, q) + dt f_r`, where `f` keeps only
+//! the body, external and contact forces. So a step never needs `K` as a matrix: the row
+//! sweep writes `A` alone. Because `sum_j K_ij = 0`, the corner positions may be taken
+//! relative to the cell ([`corner_offsets`]). Without corotation `R = I` and `z_j = cu u_j`.
 
 use super::super::element::{
-    cell_rotations4, corner_offsets, corotation_forces, padded_transpose, ElementBlocks, PaddedBlock,
+    cell_rotations4, comb, corner_offsets, lanes3, padded_transpose, ElementBlocks, PaddedBlock, OPPOSITE,
 };
 use super::super::grid::{Cell, Grid};
-use super::{for_each_item, Assembler, CELL_CHUNK};
+use super::{for_each_item, Assembler, Material, CELL_CHUNK};
 use gpumat::simd::{dispatch, Kernel, Portable, Simd4};
 use gpumat::{Mat3, Matrix, Vec3};
 use rayon::prelude::*;
@@ -21,45 +34,73 @@ impl Assembler {
             .collect()
     }
 
-    /// One sweep over the cells: the rotation `R_e` (eq. 4.4.8-4.4.9) into `rotations` and,
-    /// with the cell's blocks at hand, its corner forces ([`corotation_forces`], scaled by
-    /// `scale[e]`) and padded `R_e^T` into `work`. The buffers are resized to the cell count and
-    /// reused from step to step.
+    /// One sweep over the cells (module docs): with `rotations`, the rotation `R_e`
+    /// (eq. 4.4.8-4.4.9, `iterations` polar steps) of each cell into it (else `R_e = I`), and
+    /// with the cell's blocks at hand its padded `R_e^T` and its share `c_(e, i)` of the Newmark
+    /// right-hand side (coefficients `cu`, `dt`) into `work`. The buffers are resized to the
+    /// cell count and reused from step to step.
     #[allow(clippy::too_many_arguments)]
-    pub fn rotations_and_cell_forces(
+    pub fn rotations_and_cell_rhs(
         &self,
         grid: &Grid,
+        m: &Material,
         u: &Matrix<Vec3<f64>>,
+        (cu, dt): (f64, f64),
         iterations: usize,
         blocks: &ElementBlocks,
+        dirichlet: &[bool],
         scale: Option<&[f64]>,
-        rotations: &mut Vec<Mat3<f64>>,
+        rotations: Option<&mut Vec<Mat3<f64>>>,
         work: &mut CellWork,
     ) {
         let nc = grid.cells.len();
-        rotations.resize(nc, Mat3::default());
+        assert!(
+            self.cell_dofs.len() == nc
+                && dirichlet.len() == nc
+                && scale.map_or(true, |s| s.len() == nc)
+                && u.rows() == grid.dofs(),
+            "cutfem: cell data of another size"
+        );
         work.rt.resize(nc, [[0.0; 4]; 3]);
-        work.forces.resize(nc, [Vec3::default(); 8]);
+        work.rhs.resize(nc, [Vec3::default(); 8]);
         let sweep = CellSweep {
+            asm: self,
             grid,
+            m,
             us: u.as_slice(),
             x: corner_offsets(grid.h()),
+            cu,
+            dt,
             iterations,
             blocks,
+            dirichlet,
             scale,
         };
-        let items: Vec<_> = rotations
-            .chunks_mut(CELL_CHUNK)
+        let rot_chunks: Vec<Option<&mut [Mat3<f64>]>> = match rotations {
+            Some(r) => {
+                r.resize(nc, Mat3::default());
+                r.chunks_mut(CELL_CHUNK).map(Some).collect()
+            }
+            None => (0..nc.div_ceil(CELL_CHUNK)).map(|_| None).collect(),
+        };
+        let items: Vec<_> = rot_chunks
+            .into_iter()
             .zip(work.rt.chunks_mut(CELL_CHUNK))
-            .zip(work.forces.chunks_mut(CELL_CHUNK))
+            .zip(work.rhs.chunks_mut(CELL_CHUNK))
             .enumerate()
             .collect();
-        for_each_item(self.parallel(), items, |(ci, ((r, rt), f))| {
-            sweep.run(ci * CELL_CHUNK, r, rt, f)
+        for_each_item(self.parallel(), items, |(ci, ((r, rt), c))| {
+            dispatch(Chunk {
+                sweep: &sweep,
+                e0: ci * CELL_CHUNK,
+                r,
+                rt,
+                c,
+            })
         });
     }
 
-    /// Adds the corotation forces `f_i -= sum_j R K_ij (R^T x_j - x_j)` to `f`.
+    /// Adds the corotation forces `f_i -= s_e sum_j R K_ij (R^T x_j - x_j)` to `f`.
     pub fn add_corotation_forces(
         &self,
         grid: &Grid,
@@ -69,12 +110,14 @@ impl Assembler {
         f: &mut Matrix<Vec3<f64>>,
     ) {
         let x = corner_offsets(grid.h());
-        // per cell: the 8 corner forces
+        let zero = [Vec3::default(); 8];
+        // per cell: the 8 corner forces (the share of `dt f_rot` with `dt = 1`, no `K u`)
         let cell_forces: Vec<[Vec3<f64>; 8]> = (0..grid.cells.len())
             .into_par_iter()
             .map(|e| {
                 let (r, s) = (&rotations[e], scale.map_or(1.0, |s| s[e]));
-                corotation_forces(Portable, blocks.cell_columns(e), r, &padded_transpose(r), &x, s)
+                let kc = blocks.cell_columns(e);
+                cell_rhs(Portable, kc, r, &padded_transpose(r), &x, &zero, (0.0, 1.0), s)
             })
             .collect();
         let fs = f.as_mut_slice();
@@ -86,85 +129,161 @@ impl Assembler {
     }
 }
 
-/// Per-cell data of a corotated step, filled by [`Assembler::rotations_and_cell_forces`] and
-/// reused from step to step: the padded transposed rotations (for the rotation kernel) and
-/// the corotation forces at the corners of each cell.
+/// Per-cell data of a step, filled by [`Assembler::rotations_and_cell_rhs`] and reused from
+/// step to step: the padded transposed rotations (for the rotation kernel) and each cell's
+/// share of the Newmark right-hand side at its corners.
 #[derive(Clone, Debug, Default)]
 pub struct CellWork {
     pub(super) rt: Vec<PaddedBlock>,
-    pub(super) forces: Vec<[Vec3<f64>; 8]>,
+    pub(super) rhs: Vec<[Vec3<f64>; 8]>,
 }
 
 impl CellWork {
-    /// The corner forces of each cell from the last sweep.
-    pub fn forces(&self) -> &[[Vec3<f64>; 8]] {
-        &self.forces
+    /// The corner shares `c_(e, i)` of the right-hand side of each cell from the last sweep.
+    pub fn rhs(&self) -> &[[Vec3<f64>; 8]] {
+        &self.rhs
     }
 }
 
-/// The inputs of the cell sweep of [`Assembler::rotations_and_cell_forces`].
+/// The inputs of the cell sweep of [`Assembler::rotations_and_cell_rhs`].
 struct CellSweep<'a> {
+    asm: &'a Assembler,
     grid: &'a Grid,
+    m: &'a Material,
     us: &'a [Vec3<f64>],
     x: [Vec3<f64>; 8],
+    cu: f64,
+    dt: f64,
     iterations: usize,
     blocks: &'a ElementBlocks,
+    dirichlet: &'a [bool],
     scale: Option<&'a [f64]>,
 }
 
-impl CellSweep<'_> {
-    /// Cells `e0..e0 + r.len()`, in AVX2 registers where the CPU has them (same operations,
-    /// same values).
-    fn run(&self, e0: usize, r: &mut [Mat3<f64>], rt: &mut [PaddedBlock], f: &mut [[Vec3<f64>; 8]]) {
-        struct Chunk<'a> {
-            sweep: &'a CellSweep<'a>,
-            e0: usize,
-            r: &'a mut [Mat3<f64>],
-            rt: &'a mut [PaddedBlock],
-            f: &'a mut [[Vec3<f64>; 8]],
-        }
-        impl Kernel for Chunk<'_> {
-            type Output = ();
-            #[inline(always)]
-            fn run<S: Simd4>(self, s: S) {
-                let w = self.sweep;
-                let n = self.r.len();
-                // rotations four cells at a time (lanes past the end get a zero displacement)
-                for g in (0..n).step_by(4) {
-                    let mut u = [[Vec3::default(); 8]; 4];
-                    for (l, ul) in u.iter_mut().enumerate().take(n - g) {
-                        let dofs = &w.grid.cells[self.e0 + g + l].dofs;
-                        for q in 0..8 {
-                            ul[q] = w.us[dofs[q] as usize];
-                        }
-                    }
-                    let r4 = cell_rotations4(s, &u, w.grid.h(), w.iterations);
-                    for (l, r) in r4.into_iter().enumerate().take(n - g) {
-                        self.r[g + l] = r;
-                    }
-                }
-                for (o, ((r, rt), f)) in self
-                    .r
-                    .iter()
-                    .zip(self.rt.iter_mut())
-                    .zip(self.f.iter_mut())
-                    .enumerate()
-                {
-                    let e = self.e0 + o;
-                    *rt = padded_transpose(r);
-                    let sc = w.scale.map_or(1.0, |sc| sc[e]);
-                    *f = corotation_forces(s, w.blocks.cell_columns(e), r, rt, &w.x, sc);
+/// Cells `e0..e0 + rt.len()` of the sweep, in AVX2 registers where the CPU has them (same
+/// operations, same values).
+struct Chunk<'a> {
+    sweep: &'a CellSweep<'a>,
+    e0: usize,
+    /// the rotations to compute (`None`: `R = I`)
+    r: Option<&'a mut [Mat3<f64>]>,
+    rt: &'a mut [PaddedBlock],
+    c: &'a mut [[Vec3<f64>; 8]],
+}
+
+impl Kernel for Chunk<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run<S: Simd4>(self, s: S) {
+        let w = self.sweep;
+        let n = self.rt.len();
+        let mut r = self.r;
+        // the corner displacements and, four cells at a time, the rotations (lanes past the
+        // end get a zero displacement)
+        for g in (0..n).step_by(4) {
+            let mut u = [[Vec3::default(); 8]; 4];
+            let lanes = (n - g).min(4);
+            for (l, ul) in u.iter_mut().enumerate().take(lanes) {
+                let dofs = &w.asm.cell_dofs[self.e0 + g + l];
+                for q in 0..8 {
+                    ul[q] = w.us[dofs[q] as usize];
                 }
             }
+            let r4 = match r.as_deref_mut() {
+                Some(rs) => {
+                    let r4 = cell_rotations4(s, &u, w.grid.h(), w.iterations);
+                    rs[g..g + lanes].copy_from_slice(&r4[..lanes]);
+                    r4
+                }
+                None => [Mat3::identity(); 4],
+            };
+            for l in 0..lanes {
+                let e = self.e0 + g + l;
+                let rt = padded_transpose(&r4[l]);
+                self.rt[g + l] = rt;
+                let sc = w.scale.map_or(1.0, |sc| sc[e]);
+                let kc = w.blocks.cell_columns(e);
+                let mut c = cell_rhs(s, kc, &r4[l], &rt, &w.x, &u[l], (w.cu, w.dt), sc);
+                if w.dirichlet[e] {
+                    w.add_nitsche(e, &u[l], sc, &mut c);
+                }
+                self.c[g + l] = c;
+            }
         }
-        dispatch(Chunk {
-            sweep: self,
-            e0,
-            r,
-            rt,
-            f,
-        })
     }
+}
+
+impl CellSweep<'_> {
+    /// `c_i += cu sum_j N_ij u_j` for the Nitsche blocks `N_ij` of cell `e` (traction terms
+    /// scaled by `sc`, the penalty not; only corners on a common edge have any, see
+    /// [`StiffnessTables::nitsche_block`](super::super::element::StiffnessTables::nitsche_block)).
+    #[inline(never)]
+    fn add_nitsche(&self, e: usize, u: &[Vec3<f64>; 8], sc: f64, c: &mut [Vec3<f64>; 8]) {
+        let ci = &self.grid.cells[e].integrals;
+        let n = Vec3::from_array(ci.normal);
+        let (lambda, mu) = (self.m.lambda * sc, self.m.mu * sc);
+        for (i, ci_out) in c.iter_mut().enumerate() {
+            let mut acc = Vec3::default();
+            for (j, uj) in u.iter().enumerate() {
+                if (i ^ j).count_ones() <= 1 {
+                    let nb = self
+                        .asm
+                        .tables()
+                        .nitsche_block(&ci.boundary, n, i, j, lambda, mu, self.m.eta);
+                    acc = acc + nb * *uj;
+                }
+            }
+            *ci_out = *ci_out + acc * self.cu;
+        }
+    }
+}
+
+/// The share `c_i = sc R sum_j K_ij z_j`, `z_j = cu R^T u_j - dt (R^T x_j - x_j)` (module
+/// docs, Nitsche terms left out) of a cell at its eight corners, from the columns `kc` of its
+/// blocks ([`ElementBlocks::cell_columns`]), its rotation `r` and padded transpose `rt`
+/// ([`padded_transpose`]), the corner offsets `x` ([`corner_offsets`]), the corner
+/// displacements `u` and the stiffness scale `sc`, with the vectors of `s`: lane `p` of each
+/// vector step is the component `p` of the formula (`R^T y = sum_k R_k y_k` over the rows
+/// `R_k`, `K z = sum_l K_(.l) z_l` over the columns), so every backend gives the same bits. The
+/// zero blocks of opposite corners are skipped (a sum that starts at +0 is not changed by
+/// adding zeros). With `cu = 0`, `dt = 1` it is the corotation force.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(super) fn cell_rhs<S: Simd4>(
+    s: S,
+    kc: &[[PaddedBlock; 8]; 8],
+    r: &Mat3<f64>,
+    rt: &PaddedBlock,
+    x: &[Vec3<f64>; 8],
+    u: &[Vec3<f64>; 8],
+    (cu, dt): (f64, f64),
+    sc: f64,
+) -> [Vec3<f64>; 8] {
+    let load3 = |v: &PaddedBlock| [s.load(&v[0]), s.load(&v[1]), s.load(&v[2])];
+    let m = &r.m;
+    let row = |p: usize| s.set([m[p][0], m[p][1], m[p][2], 0.0]);
+    let rows = [row(0), row(1), row(2)];
+    let (cuv, dtv) = (s.splat(cu), s.splat(dt));
+    let mut z = [[0.0; 3]; 8];
+    for j in 0..8 {
+        let (xj, uj) = (x[j].to_array(), u[j].to_array());
+        let d = s.sub(comb(s, &xj, &rows), s.set([xj[0], xj[1], xj[2], 0.0]));
+        let ru = comb(s, &uj, &rows);
+        z[j] = lanes3(s, s.sub(s.mul(cuv, ru), s.mul(dtv, d)));
+    }
+    let rtv = load3(rt);
+    let mut c = [Vec3::default(); 8];
+    for i in 0..8 {
+        let mut sum = s.splat(0.0);
+        for j in 0..8 {
+            if i ^ j != OPPOSITE {
+                sum = s.add(sum, comb(s, &z[j], &load3(&kc[i][j])));
+            }
+        }
+        let rs = lanes3(s, comb(s, &lanes3(s, sum), &rtv));
+        c[i] = Vec3::new(rs[0] * sc, rs[1] * sc, rs[2] * sc);
+    }
+    c
 }
 
 /// The rotation of cell `c` (eq. 4.4.8-4.4.9).
@@ -178,4 +297,50 @@ fn cell_rotation(grid: &Grid, us: &[Vec3<f64>], c: &Cell, iterations: usize) -> 
         super::super::element::deformation_gradient(&ue, grid.h()),
         iterations,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The vector kernel on every backend of this CPU gives the bits of the textbook loops.
+    fn check<S: Simd4>(s: S) {
+        let mut seed = 11u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        };
+        let mut mat = || Mat3::from_rows(std::array::from_fn(|_| std::array::from_fn(|_| next())));
+        let k: [[Mat3<f64>; 8]; 8] = std::array::from_fn(|_| std::array::from_fn(|_| mat()));
+        let r = mat();
+        let u: [Vec3<f64>; 8] = std::array::from_fn(|_| Vec3::from_array(mat().m[0]));
+        let kc = k.map(|row| row.map(|b| padded_transpose(&b)));
+        let x = corner_offsets(0.25);
+        let (cu, dt, sc) = (0.3, 0.01, 1.5);
+        let got = cell_rhs(s, &kc, &r, &padded_transpose(&r), &x, &u, (cu, dt), sc);
+        for i in 0..8 {
+            let mut sum = Vec3::default();
+            for j in 0..8 {
+                if i ^ j != OPPOSITE {
+                    let z = (r.transpose() * u[j]) * cu - (r.transpose() * x[j] - x[j]) * dt;
+                    sum = sum + k[i][j] * z;
+                }
+            }
+            assert_eq!(
+                got[i].to_array().map(f64::to_bits),
+                ((r * sum) * sc).to_array().map(f64::to_bits)
+            );
+        }
+    }
+
+    #[test]
+    fn cell_rhs_matches_the_plain_loops_bitwise() {
+        check(Portable);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(s) = gpumat::simd::Avx2::detect() {
+            check(s);
+        }
+    }
 }

@@ -1,0 +1,349 @@
+//! A step's row sweep and its last pass (see [`super`] and [`super::cells`]).
+//!
+//! The row sweep computes each block of `K` on and above the diagonal as the fixed-order sum
+//! of its element blocks and turns it at once into the block of the Newmark matrix
+//! `A = cm M + ck K` (thesis eq. 2.6.2, [`super::newmark`]); `K` itself is stored only when
+//! asked for (the adjoint's recomputed steps need it, a forward step does not). In the same
+//! sweep it writes, per node, the force `f_r = m_r g` and the part of the right-hand side that
+//! does not depend on the forces added later:
+//! `b_r = cm m_r u_r + cv m_r v_r + sum_(e, q at r) c_(e, q)`, with the cells' shares
+//! `c_(e, q)` of [`super::cells`] (the stiffness term `cu K u` and the corotation force) summed
+//! in [`Assembler::cells_of`] order. After the external and ground forces have been added to
+//! `f`, the last pass ([`Assembler::finish_step`]) writes each block of `A` (and `K`) below
+//! the diagonal as the transpose of its mirror and adds `dt f_r` to `b_r`.
+
+use super::cells::CellWork;
+use super::newmark::Coefficients;
+use super::{for_each_item, Assembler, Cells, ElementBlocks, Material, RowSink, ROW_CHUNK};
+use crate::fem::grid::Grid;
+use crate::fem::model::Model;
+use gpumat::{Mat3, Matrix, Scalar, SparseMatrix, Vec3};
+use std::sync::Arc;
+
+/// The state and coefficients a step's row sweep reads besides the cells.
+pub(crate) struct StepState<'a> {
+    /// the model (Newmark coefficients, gravity)
+    pub model: &'a Model,
+    /// lumped mass per dof
+    pub mass: &'a Matrix<f64>,
+    /// displacement
+    pub u: &'a Matrix<Vec3<f64>>,
+    /// velocity
+    pub v: &'a Matrix<Vec3<f64>>,
+}
+
+/// The outputs of a step's row sweep: `K` when it is kept, `A`, `b`, `f`.
+pub(crate) struct StepOutput<'a> {
+    pub k: Option<&'a mut SparseMatrix<Mat3<f64>>>,
+    pub a: &'a mut SparseMatrix<Mat3<f64>>,
+    pub b: &'a mut Matrix<Vec3<f64>>,
+    pub f: &'a mut Matrix<Vec3<f64>>,
+}
+
+impl Assembler {
+    /// A step's row sweep (module docs): the blocks of `A` (and of `K` when `out.k` is given)
+    /// on and above the diagonal, `f = M g` and `b` without `dt f`. `work`: the cell sweep's
+    /// data ([`Assembler::rotations_and_cell_rhs`] for the same state); `corotated`: whether
+    /// its rotations enter the blocks.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn assemble_step(
+        &self,
+        grid: &Grid,
+        m: &Material,
+        blocks: &ElementBlocks,
+        corotated: bool,
+        work: &CellWork,
+        dirichlet: &[bool],
+        scale: Option<&[f64]>,
+        st: &StepState<'_>,
+        out: StepOutput<'_>,
+    ) {
+        let cells = Cells {
+            grid,
+            m,
+            blocks,
+            rotations: corotated.then_some(&work.rt[..]),
+            dirichlet,
+            scale,
+        };
+        cells.check();
+        let n = self.pattern.rows();
+        let (ms, us, vs) = (st.mass.as_slice(), st.u.as_slice(), st.v.as_slice());
+        assert!(
+            [
+                ms.len(),
+                us.len(),
+                vs.len(),
+                out.b.as_slice().len(),
+                out.f.as_slice().len()
+            ] == [n; 5]
+                && work.rhs.len() == grid.cells.len(),
+            "cutfem: step vectors of another size"
+        );
+        for mat in std::iter::once(&*out.a).chain(out.k.as_deref()) {
+            assert!(
+                Arc::ptr_eq(mat.pattern(), &self.pattern) && mat.batches() == 1,
+                "cutfem: step matrix with a foreign pattern"
+            );
+        }
+        let rows = StepRows {
+            nw: Coefficients::new(st.model),
+            gravity: st.model.gravity,
+            ms,
+            us,
+            vs,
+            cell_rhs: &work.rhs,
+        };
+        let rp = self.pattern.row_ptr();
+        let k_chunks: Vec<Option<&mut [Mat3<f64>]>> = match out.k {
+            Some(k) => self
+                .pattern
+                .split_rows_mut(k.batch_values_mut(0), ROW_CHUNK)
+                .into_iter()
+                .map(|(_, v)| Some(v))
+                .collect(),
+            None => (0..n.div_ceil(ROW_CHUNK)).map(|_| None).collect(),
+        };
+        let items: Vec<_> = self
+            .pattern
+            .split_rows_mut(out.a.batch_values_mut(0), ROW_CHUNK)
+            .into_iter()
+            .zip(k_chunks)
+            .zip(out.b.as_mut_slice().chunks_mut(ROW_CHUNK))
+            .zip(out.f.as_mut_slice().chunks_mut(ROW_CHUNK))
+            .collect();
+        for_each_item(self.parallel(), items, |((((r0, a), k), b), f)| {
+            let sink = StepSink {
+                rows: &rows,
+                base: rp[r0],
+                r0,
+                a,
+                k,
+                b,
+                f,
+                acc: Vec3::ZERO,
+            };
+            self.upper_rows(&cells, r0, sink)
+        });
+    }
+
+    /// A step's last pass (module docs): the blocks of `a` (and `k`) below the diagonal from
+    /// their mirrors, and `b += dt f`.
+    pub(crate) fn finish_step(
+        &self,
+        dt: f64,
+        f: &Matrix<Vec3<f64>>,
+        k: Option<&mut SparseMatrix<Mat3<f64>>>,
+        a: &mut SparseMatrix<Mat3<f64>>,
+        b: &mut Matrix<Vec3<f64>>,
+    ) {
+        for mat in std::iter::once(&*a).chain(k.as_deref()) {
+            assert!(
+                Arc::ptr_eq(mat.pattern(), &self.pattern) && mat.batches() == 1,
+                "cutfem: step matrix with a foreign pattern"
+            );
+        }
+        let k = k.map(|k| k.batch_values_mut(0));
+        let rhs = (b.as_mut_slice(), f.as_slice(), dt);
+        self.mirror_lower(self.parallel(), a.batch_values_mut(0), k, Some(rhs));
+    }
+}
+
+/// What the step's row sweep reads per row.
+struct StepRows<'a> {
+    nw: Coefficients,
+    gravity: Vec3<f64>,
+    ms: &'a [f64],
+    us: &'a [Vec3<f64>],
+    vs: &'a [Vec3<f64>],
+    cell_rhs: &'a [[Vec3<f64>; 8]],
+}
+
+/// The outputs of one chunk of rows, from row `r0` (whose first entry is `base`).
+struct StepSink<'a> {
+    rows: &'a StepRows<'a>,
+    base: usize,
+    r0: usize,
+    a: &'a mut [Mat3<f64>],
+    k: Option<&'a mut [Mat3<f64>]>,
+    b: &'a mut [Vec3<f64>],
+    f: &'a mut [Vec3<f64>],
+    /// `b_r` of the row being swept
+    acc: Vec3<f64>,
+}
+
+impl RowSink for StepSink<'_> {
+    #[inline(always)]
+    fn block(&mut self, r: usize, kk: usize, diagonal: bool, k: Mat3<f64>) {
+        let nw = &self.rows.nw;
+        let m = if diagonal {
+            nw.diagonal(self.rows.ms[r])
+        } else {
+            nw.off
+        };
+        if let Some(kv) = self.k.as_deref_mut() {
+            kv[kk - self.base] = k;
+        }
+        self.a[kk - self.base] = m.add(k.scale(nw.ck));
+    }
+
+    #[inline(always)]
+    fn row_start(&mut self, r: usize) {
+        let (w, nw) = (self.rows, &self.rows.nw);
+        let m = w.ms[r];
+        self.acc = w.us[r].scale(m).scale(nw.cm).add(w.vs[r].scale(m).scale(nw.cv));
+    }
+
+    #[inline(always)]
+    fn cell(&mut self, e: usize, i: usize) {
+        self.acc = self.acc.add(self.rows.cell_rhs[e][i]);
+    }
+
+    #[inline(always)]
+    fn row_done(&mut self, r: usize) {
+        self.b[r - self.r0] = self.acc;
+        self.f[r - self.r0] = self.rows.gravity.scale(self.rows.ms[r]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::fem::{Aabb, Grid, Model, Simulation};
+    use crate::shapes::Shape;
+    use gpumat::{Mat3, Matrix, SparseMatrix, Vec3};
+
+    fn bits_m(m: &SparseMatrix<Mat3<f64>>) -> Vec<u64> {
+        m.values()
+            .iter()
+            .flat_map(|b| b.m.into_iter().flatten())
+            .map(f64::to_bits)
+            .collect()
+    }
+    fn bits_v(v: &Matrix<Vec3<f64>>) -> Vec<u64> {
+        v.as_slice()
+            .iter()
+            .flat_map(|x| x.to_array())
+            .map(f64::to_bits)
+            .collect()
+    }
+
+    /// A cuboid held at one end (Nitsche cells), large enough for the parallel passes, a few
+    /// steps in, assembled again with `K` kept; corotated or not, with a heterogeneous
+    /// stiffness or not.
+    fn sim(threads: usize, corotation: bool, scaled: bool) -> Simulation {
+        let shape = Shape::Box {
+            center: [0.0, 1.0, 0.0],
+            size: [1.29, 0.4, 0.8],
+        };
+        let grid = Grid::new(shape.to_sdf(16.0, 6).unwrap()).unwrap();
+        let cells = grid.cells.len();
+        let model = Model {
+            young: 2000.0,
+            gravity: Vec3::new(0.0, -10.0, 0.0),
+            corotation,
+            damping_mass: 0.1,
+            damping_stiffness: 0.01,
+            dirichlet: vec![Aabb {
+                min: [-0.9, 0.6, -0.6],
+                max: [-0.55, 1.4, 0.6],
+            }],
+            stiffness_scale: scaled.then(|| (0..cells).map(|e| 0.5 + (e % 7) as f64 * 0.25).collect()),
+            dt: 0.01,
+            ..Model::default()
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut sim = Simulation::new(grid, model).unwrap();
+            assert!(sim.assembler.pattern().nnz() >= gpumat::expr::PAR_THRESHOLD);
+            for _ in 0..3 {
+                sim.step().unwrap();
+            }
+            sim.assemble_system();
+            sim
+        })
+    }
+
+    /// The step's passes give the same bits on 1 and 3 threads; `K` and `A` are bit for bit
+    /// those of the plain stiffness assembly and of the Newmark system as gpumat expressions.
+    /// `b` sums its terms in another order than the plain expression (the stiffness and
+    /// corotation terms per cell, then per node), so it agrees to rounding: 1e-12 relative.
+    #[test]
+    fn step_assembly_is_thread_independent_and_matches_the_plain_passes() {
+        for (corotation, scaled) in [(true, false), (true, true), (false, true)] {
+            let (one, three) = (sim(1, corotation, scaled), sim(3, corotation, scaled));
+            assert_eq!(bits_m(one.stiffness()), bits_m(three.stiffness()));
+            assert_eq!(bits_m(one.newmark_matrix()), bits_m(three.newmark_matrix()));
+            assert_eq!(bits_v(one.newmark_rhs()), bits_v(three.newmark_rhs()));
+            assert_eq!(bits_v(one.force()), bits_v(three.force()));
+
+            let s = &one;
+            let (lambda, mu) = s.model.lame();
+            let m = crate::fem::Material {
+                lambda,
+                mu,
+                eta: s.model.nitsche_eta,
+            };
+            let scale = s.model.stiffness_scale.as_deref();
+            let mut k = SparseMatrix::zeros(s.assembler.pattern().clone(), 1);
+            let blocks = s.element_blocks().unwrap();
+            s.assembler
+                .assemble_stiffness(&s.grid, &m, blocks, s.rotations(), &s.dirichlet, scale, &mut k);
+            assert_eq!(bits_m(&k), bits_m(s.stiffness()));
+
+            let (model, dt, theta) = (&s.model, s.model.dt, s.model.theta);
+            let cm = 1.0 / (theta * dt) + model.damping_mass;
+            let mut a = SparseMatrix::zeros(k.pattern().clone(), 1);
+            a.assign(
+                (s.mass.ex().cast::<Mat3<f64>>().as_diagonal() * cm
+                    + k.ex() * (model.damping_stiffness + theta * dt))
+                    .sparse_view(k.pattern()),
+            );
+            assert_eq!(bits_m(&a), bits_m(s.newmark_matrix()));
+            // the full force: f plus the corotation forces
+            let mut f = s.force().clone();
+            if let Some(r) = s.rotations() {
+                s.assembler
+                    .add_corotation_forces(&s.grid, blocks, r, scale, &mut f);
+            }
+            let mut b = Matrix::zeros(k.rows(), 1, 1);
+            b.assign(
+                s.mass.ex().cwise_mul(s.u.ex()) * cm
+                    + (&k * &s.u) * (model.damping_stiffness - (1.0 - theta) * dt)
+                    + s.mass.ex().cwise_mul(s.v.ex()) * (1.0 / theta)
+                    + f.ex() * dt,
+            );
+            let d = Matrix::eval(b.ex() - s.newmark_rhs().ex());
+            let (err, size) = (
+                d.ex().cwise_squared_norm().max(),
+                b.ex().cwise_squared_norm().max(),
+            );
+            assert!(
+                err.sqrt() <= 1e-12 * size.sqrt(),
+                "b differs by {} of {}",
+                err.sqrt(),
+                size.sqrt()
+            );
+        }
+    }
+
+    /// A forward step's assembly (no `K` stored) gives the bits of `A` and `b` of
+    /// `assemble_system`, and the `K` computed on demand afterwards is the kept one.
+    #[test]
+    fn step_without_k_matches_assemble_system() {
+        let mut s = sim(2, true, false);
+        let (k, a, b, f) = (
+            s.stiffness().clone(),
+            s.newmark_matrix().clone(),
+            s.newmark_rhs().clone(),
+            s.force().clone(),
+        );
+        s.assemble_system_with(false);
+        assert_eq!(bits_m(&a), bits_m(s.newmark_matrix()));
+        assert_eq!(bits_v(&b), bits_v(s.newmark_rhs()));
+        assert_eq!(bits_v(&f), bits_v(s.force()));
+        assert_eq!(bits_m(&k), bits_m(s.stiffness()));
+    }
+}
