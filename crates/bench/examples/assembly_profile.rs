@@ -1,9 +1,14 @@
 //! The grid assembly's cost inside a realistic step of Table B.5's cuboid (held at one end,
-//! corotation on): each step followed by the level-set diffusion and advection, as in the
-//! `tables` binary, so that the assembly finds the caches as the CG solve and the advection
-//! left them. Prints per step the assembly (`StepInfo::assembly_s`), its cell and row sweeps
-//! (`StepInfo::stiffness_s`), the step with the advection and the assembly's share, then the
-//! time of `Simulation::assemble_system` (which also keeps `K`) repeated back to back.
+//! corotation on), after `warm-up` steps, in three settings of `steps` calls each:
+//!
+//! - `step+adv`: each step followed by the level-set diffusion and advection, as in the `tables`
+//!   binary, so that the assembly finds the caches and the thread pool as the CG solve and the
+//!   advection left them;
+//! - `step`: the steps alone;
+//! - `b2b`: `Simulation::assemble_system` (which also keeps `K`) back to back, warm caches.
+//!
+//! Each line gives the assembly (`StepInfo::assembly_s`), its pass over cells and rows
+//! (`StepInfo::stiffness_s`), the whole call and the assembly's share of it.
 //!
 //! ```sh
 //! cargo run --release -p bench --example assembly_profile -- [r] [steps] [warm-up steps]
@@ -31,34 +36,37 @@ fn main() {
     for _ in 0..warm_up {
         sim.step().expect("step");
     }
-    let (mut asm, mut sweeps, mut wall) = (0.0, 0.0, 0.0);
-    for _ in 0..steps {
-        let t = Instant::now();
-        let info = sim.step().expect("step");
-        let u_band = band.diffuse(&sim.u).expect("diffuse");
-        let _ = advect(&sim.grid, &band, &u_band).expect("advect");
-        wall += t.elapsed().as_secs_f64();
-        asm += info.assembly_s;
-        sweeps += info.stiffness_s;
-    }
-    let (mut again, mut again_sweeps) = (0.0, 0.0);
-    for _ in 0..steps {
-        let info = sim.assemble_system();
-        again += info.assembly_s;
-        again_sweeps += info.stiffness_s;
-    }
-    let ms = |s: f64| s / steps as f64 * 1e3;
     println!(
-        "r={r} nodes={} blocks={} | in steps: asm {:.3} ms (sweeps {:.3} ms, last pass {:.3} ms) \
-         step {:.2} ms asm/step {:.2}% | assemble_system back to back {:.3} ms (sweeps {:.3} ms)",
+        "r={r} nodes={} cells={} blocks={}",
         sim.grid.dofs(),
-        sim.assembler.pattern().nnz(),
-        ms(asm),
-        ms(sweeps),
-        ms(asm - sweeps),
-        ms(wall),
-        100.0 * asm / wall,
-        ms(again),
-        ms(again_sweeps)
+        sim.grid.cells.len(),
+        sim.assembler.pattern().nnz()
     );
+    let ms = |s: f64| s / steps as f64 * 1e3;
+    for mode in ["step+adv", "step", "b2b"] {
+        let (mut asm, mut pass, mut wall) = (0.0, 0.0, 0.0);
+        for _ in 0..steps {
+            let t = Instant::now();
+            let info = if mode == "b2b" {
+                sim.assemble_system()
+            } else {
+                sim.step().expect("step")
+            };
+            if mode == "step+adv" {
+                let u_band = band.diffuse(&sim.u).expect("diffuse");
+                let _ = advect(&sim.grid, &band, &u_band).expect("advect");
+            }
+            wall += t.elapsed().as_secs_f64();
+            asm += info.assembly_s;
+            pass += info.stiffness_s;
+        }
+        println!(
+            "{mode:9} asm {:.3} ms (pass {:.3} ms, rest {:.3} ms) | call {:.2} ms | asm/call {:.2}%",
+            ms(asm),
+            ms(pass),
+            ms(asm - pass),
+            ms(wall),
+            100.0 * asm / wall
+        );
+    }
 }

@@ -48,8 +48,8 @@ pub struct CuboidRow {
     pub grid_assembly_s: f64,
     /// tets: seconds per step in assembly
     pub tet_assembly_s: f64,
-    /// grid: seconds per step in rotations + stiffness values (the thesis' "assembly"): the cell
-    /// and row sweeps, which also compute `K u`, the corotation and body forces, the upper
+    /// grid: seconds per step in rotations + stiffness values (the thesis' "assembly"): the pass
+    /// over cells and rows, which also computes `K u`, the corotation and body forces, all
     /// blocks of A and most of b (a step's stiffness values go into A, K is not stored)
     pub grid_stiffness_s: f64,
     /// tets: seconds per step in rotations + stiffness values

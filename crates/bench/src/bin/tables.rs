@@ -347,10 +347,10 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
                 &format!("Table {id}: the cuboid {what}, grid vs 6 tets per cell, corotation on"),
                 "Cells of size 1/(2r); f64; CG with block-Jacobi, relative tolerance 1e-6, warm start \
                  u + dt v; times per step averaged over the run. K = rotations + stiffness values (the \
-                 thesis' matrix assembly; the grid's cell and row sweeps also compute K u, the \
-                 corotation and body forces, the upper blocks of A and most of b there, and its steps \
+                 thesis' matrix assembly; the grid's one pass over cells and rows also computes K u, the \
+                 corotation and body forces, all blocks of A and most of b there, and its steps \
                  put the stiffness values into A without storing K); asm = K + the rest of the \
-                 Newmark A and b (the grid: mirroring A's lower blocks, adding dt f to b). \
+                 Newmark A and b (the grid: adding dt f to b). \
                  IC0 / RC: the same grid steps with the modified block IC(0) preconditioner (every step) \
                  / with the rest-state Cholesky factor (nested dissection, refactored after a step of \
                  more than 25 iterations); their CG ms leave out the factorizations, factor ms = all \

@@ -16,18 +16,20 @@
 //! A time step needs the Newmark matrix `A = cm M + ck K` and right-hand side
 //! `b = cm M u + cu K u + cv M v + dt f` ([`newmark`]), not `K` itself: writing `K` and
 //! reading it again for `b` and the lower half of `A` would double the memory traffic of the
-//! assembly. A step's assembly is three sweeps:
-//! 1. over the cells ([`Assembler::rotations_and_cell_rhs`], [`cells`]): the rotation `R_e`,
-//!    four cells at a time, and, while the cell's blocks are at hand, its share of `b` at its
-//!    corners: `cu K u` and `dt` times the corotation force in one product per cell;
+//! assembly. A step's assembly is three sweeps, run together in one parallel pass over work
+//! units of consecutive cells and rows ([`pipeline`], [`Assembler::assemble_step`]):
+//! 1. over the cells ([`cells`]): the rotation `R_e`, four cells at a time, and, while the
+//!    cell's blocks are at hand, its share of `b` at its corners: `cu K u` and `dt` times the
+//!    corotation force in one product per cell;
 //! 2. over the rows ([`step`]): the blocks of `A` on and above the diagonal, each from the
 //!    block of `K` summed in registers (and stored too where the caller keeps `K`, as the
 //!    adjoint's recomputed steps do), `f = M g` and `b` without `dt f`;
-//! 3. after the external and ground forces: the blocks of `A` (and `K`) below the diagonal
-//!    as the transposes of their mirrors, and `b += dt f`.
+//! 3. the blocks of `A` (and `K`) below the diagonal as the transposes of their mirrors.
 //!
-//! Every pass works on fixed chunks of rows or cells, writes each value from exactly one task
-//! and sums in a fixed order, so the results are bit-identical whatever the number of
+//! After the external and ground forces, a last pass adds `dt f` to `b`.
+//!
+//! Every pass works on fixed chunks or units of rows or cells, writes each value from exactly
+//! one task and sums in a fixed order, so the results are bit-identical whatever the number of
 //! threads; `K` and `A` are those of the plain passes ([`Assembler::assemble_stiffness`],
 //! [`crate::fem::sim::newmark_system`]) bit for bit, `b` equals theirs up to rounding (it
 //! sums the same terms in another order). The hot loops are written once over
@@ -35,11 +37,12 @@
 
 mod cells;
 mod newmark;
+mod pipeline;
 mod step;
 
 pub use cells::CellWork;
-pub(crate) use newmark::{fill_newmark, Coefficients};
-pub(crate) use step::{StepOutput, StepState};
+pub(crate) use newmark::fill_newmark;
+pub(crate) use step::{StepCells, StepOutput, StepState};
 
 use super::element::{lanes3, padded_transpose, rotate_add, PaddedBlock, StiffnessTables, OPPOSITE};
 pub use super::element::{rotate_block, ElementBlocks};
@@ -57,8 +60,6 @@ pub(crate) const ROW_CHUNK: usize = 64;
 const MAX_UPPER: usize = 14;
 /// [`Assembler`]'s mark of a corner pair with no block of its own in the row sweep.
 const NO_BLOCK: u8 = u8::MAX;
-/// Cells per task of the parallel cell pass.
-const CELL_CHUNK: usize = 64;
 
 /// Runs `f` on every work item, on the rayon pool when `parallel`, else in order on the
 /// calling thread (small problems: waking the pool costs more than their work, as for
@@ -84,6 +85,11 @@ unsafe impl Send for EntryWriter {}
 unsafe impl Sync for EntryWriter {}
 
 impl EntryWriter {
+    /// The entries of the buffer of `p`.
+    fn of(p: pipeline::Parts<Mat3<f64>>) -> Self {
+        let (ptr, len) = p.raw();
+        Self(ptr, len)
+    }
     /// # Safety
     /// `k` is written by no other task and read by none while this runs.
     #[inline(always)]
@@ -132,6 +138,8 @@ pub struct Assembler {
     upper: Vec<[u8; 8]>,
     /// the corner dofs of each cell (the cells' `dofs`, packed for the cell sweep)
     cell_dofs: Vec<[u32; 8]>,
+    /// the work units of a step's pass ([`pipeline`])
+    units: pipeline::Units,
     tables: StiffnessTables,
 }
 
@@ -199,6 +207,7 @@ impl Assembler {
                 })
             })
             .collect();
+        let units = pipeline::Units::new(grid.cells.len(), &pattern, &diag, &node_ptr, &node_cells);
         Self {
             pattern,
             diag,
@@ -207,6 +216,7 @@ impl Assembler {
             node_cells,
             upper,
             cell_dofs: grid.cells.iter().map(|c| c.dofs).collect(),
+            units,
             tables: StiffnessTables::new(grid.h()),
         }
     }
@@ -263,6 +273,7 @@ impl Assembler {
             m,
             blocks,
             rotations: rotations.map(|_| &rt[..]),
+            cell_base: 0,
             dirichlet,
             scale,
         };
@@ -282,10 +293,12 @@ impl Assembler {
         let values = k.batch_values_mut(0);
         let rp = self.pattern.row_ptr();
         let chunks = self.pattern.split_rows_mut(values, ROW_CHUNK);
+        let n = self.pattern.rows();
         for_each_item(parallel, chunks, |(r0, vals)| {
-            self.upper_rows(c, r0, Values { base: rp[r0], vals })
+            let r1 = (r0 + ROW_CHUNK).min(n);
+            self.upper_rows(c, r0..r1, Values { base: rp[r0], vals })
         });
-        self.mirror_lower(parallel, values, None, None);
+        self.mirror_lower(parallel, values);
     }
 
     /// Whether the passes of this pattern run on the rayon pool (see [`for_each_item`]).
@@ -293,91 +306,85 @@ impl Assembler {
         self.pattern.nnz() >= gpumat::expr::PAR_THRESHOLD
     }
 
-    /// Each block below the diagonal of `a` (and of `k`) from its mirror above it, in place;
-    /// with `rhs = (b, f, dt)`, also `b_r += dt f_r` for every row (a step's last pass).
-    fn mirror_lower(
-        &self,
-        parallel: bool,
-        a: &mut [Mat3<f64>],
-        k: Option<&mut [Mat3<f64>]>,
-        rhs: Option<ForcesIntoRhs<'_>>,
-    ) {
-        let (n, rp) = (self.pattern.rows(), self.pattern.row_ptr());
-        assert!(
-            a.len() == self.pattern.nnz() && k.as_ref().map_or(true, |k| k.len() == a.len()),
-            "cutfem: values of another pattern"
-        );
-        let aw = EntryWriter(a.as_mut_ptr(), a.len());
-        let kw = k.map(|k| EntryWriter(k.as_mut_ptr(), k.len()));
-        let (b, f, dt) = rhs.unwrap_or((&mut [], &[], 0.0));
-        assert!(
-            b.len() == f.len() && (b.is_empty() || b.len() == n),
-            "cutfem: vectors of another size"
-        );
-        let mut b_chunks: Vec<Option<&mut [Vec3<f64>]>> = b.chunks_mut(ROW_CHUNK).map(Some).collect();
-        b_chunks.resize_with(n.div_ceil(ROW_CHUNK), || None);
-        let items: Vec<_> = b_chunks.into_iter().enumerate().collect();
-        for_each_item(parallel, items, |(ci, mut bc)| {
-            gpumat::simd::with_avx2(
-                #[inline(always)]
-                || {
-                    let r0 = ci * ROW_CHUNK;
-                    let r1 = (r0 + ROW_CHUNK).min(n);
-                    for r in r0..r1 {
-                        for kk in rp[r]..self.diag[r] as usize {
-                            let m = self.mirror[kk] as usize;
-                            // SAFETY: the `kk` are distinct entries below the diagonal, each
-                            // written by the one task that owns its row; their mirrors lie on
-                            // or above it, written in the finished pass before this one and only
-                            // read here, so no entry is both read and written concurrently.
-                            unsafe {
-                                aw.write(kk, aw.read(m).transpose());
-                                if let Some(kw) = &kw {
-                                    kw.write(kk, kw.read(m).transpose());
-                                }
-                            }
-                        }
-                        if let Some(bc) = bc.as_deref_mut() {
-                            bc[r - r0] = bc[r - r0].add(f[r].scale(dt));
-                        }
-                    }
-                },
-            )
+    /// Each block below the diagonal of `k` from its mirror above it, in place.
+    fn mirror_lower(&self, parallel: bool, k: &mut [Mat3<f64>]) {
+        let n = self.pattern.rows();
+        assert!(k.len() == self.pattern.nnz(), "cutfem: values of another pattern");
+        let kw = EntryWriter(k.as_mut_ptr(), k.len());
+        let items: Vec<usize> = (0..n.div_ceil(ROW_CHUNK)).collect();
+        for_each_item(parallel, items, |ci| {
+            let rows = ci * ROW_CHUNK..((ci + 1) * ROW_CHUNK).min(n);
+            // SAFETY: the blocks below the diagonal of `rows` are written by this task alone;
+            // their mirrors lie on or above the diagonal, written by the finished row sweep and
+            // only read in this pass.
+            unsafe { self.mirror_rows(rows, kw, None) }
         });
     }
 
-    /// The upper blocks (from each row's diagonal on) of the rows from `r0` into `sink`, in
+    /// The blocks below the diagonal of the rows `rows` of `a` (and `k`) from their mirrors.
+    ///
+    /// # Safety
+    /// No other task reads or writes the blocks below the diagonal of `rows`, and no task
+    /// writes their mirrors (the blocks on or above the diagonal of the rows they belong to)
+    /// while this runs.
+    unsafe fn mirror_rows(&self, rows: std::ops::Range<usize>, a: EntryWriter, k: Option<EntryWriter>) {
+        let rp = self.pattern.row_ptr();
+        gpumat::simd::with_avx2(
+            #[inline(always)]
+            || {
+                for r in rows {
+                    for kk in rp[r]..self.diag[r] as usize {
+                        let m = self.mirror[kk] as usize;
+                        // SAFETY: the caller's contract.
+                        unsafe {
+                            a.write(kk, a.read(m).transpose());
+                            if let Some(k) = &k {
+                                k.write(kk, k.read(m).transpose());
+                            }
+                        }
+                    }
+                }
+            },
+        )
+    }
+
+    /// The upper blocks (from each row's diagonal on) of the rows `rows` into `sink`, in
     /// AVX2 registers where the CPU has them (the same operations in the same order: the
     /// values do not depend on it).
-    fn upper_rows<K: RowSink>(&self, c: &Cells<'_>, r0: usize, sink: K) {
+    fn upper_rows<K: RowSink>(&self, c: &Cells<'_>, rows: std::ops::Range<usize>, sink: K) {
         struct Rows<'a, K> {
             asm: &'a Assembler,
             c: &'a Cells<'a>,
-            r0: usize,
+            rows: std::ops::Range<usize>,
             sink: K,
         }
         impl<K: RowSink> Kernel for Rows<'_, K> {
             type Output = ();
             #[inline(always)]
             fn run<S: Simd4>(self, s: S) {
-                self.asm.upper_rows_with(s, self.c, self.r0, self.sink)
+                self.asm.upper_rows_with(s, self.c, self.rows, self.sink)
             }
         }
         dispatch(Rows {
             asm: self,
             c,
-            r0,
+            rows,
             sink,
         })
     }
 
     #[inline(always)]
-    fn upper_rows_with<S: Simd4, K: RowSink>(&self, s: S, c: &Cells<'_>, r0: usize, mut sink: K) {
+    fn upper_rows_with<S: Simd4, K: RowSink>(
+        &self,
+        s: S,
+        c: &Cells<'_>,
+        rows: std::ops::Range<usize>,
+        mut sink: K,
+    ) {
         let rp = self.pattern.row_ptr();
-        let r1 = (r0 + ROW_CHUNK).min(self.pattern.rows());
         // everything called here is inlined into this function and compiled with its target
         // features
-        for r in r0..r1 {
+        for r in rows {
             let d = self.diag[r] as usize;
             let len = rp[r + 1] - d;
             sink.row_start(r);
@@ -476,7 +483,7 @@ impl Assembler {
             let (e, i) = (e as usize, i as usize);
             sink.cell(e, i);
             // the blocks as padded columns: the table the cell sweep reads too
-            let (bs, rt) = (&c.blocks.cell_columns(e)[i], &rt[e]);
+            let (bs, rt) = (&c.blocks.cell_columns(e)[i], &rt[e - c.cell_base]);
             if SCALE || c.dirichlet[e] {
                 // the rarer cells: scaled blocks, Nitsche terms
                 let se = if SCALE { scale[e] } else { 1.0 };
@@ -531,16 +538,17 @@ pub(crate) type StiffnessInputs<'a> = (
     Option<&'a [f64]>,
 );
 
-/// `(b, f, dt)` of a step's last pass: `b += dt f`.
-type ForcesIntoRhs<'a> = (&'a mut [Vec3<f64>], &'a [Vec3<f64>], f64);
-
 /// What the stiffness passes read per cell.
 struct Cells<'a> {
     grid: &'a Grid,
     m: &'a Material,
     blocks: &'a ElementBlocks,
-    /// the padded transposed rotations (`None`: no corotation)
+    /// the padded transposed rotations (`None`: no corotation) of the cells from `cell_base`
+    /// on
     rotations: Option<&'a [PaddedBlock]>,
+    /// the first cell of `rotations` (a step's pass hands each unit of rows the finished
+    /// rotations only, see [`pipeline`])
+    cell_base: usize,
     dirichlet: &'a [bool],
     scale: Option<&'a [f64]>,
 }
@@ -550,7 +558,7 @@ impl Cells<'_> {
     fn check(&self) {
         let nc = self.grid.cells.len();
         if let Some(rt) = self.rotations {
-            assert!(rt.len() == nc, "cutfem: one rotation per cell");
+            assert!(self.cell_base + rt.len() <= nc, "cutfem: one rotation per cell");
         }
         assert!(
             self.dirichlet.len() == nc && self.scale.map_or(true, |s| s.len() == nc),

@@ -23,8 +23,8 @@
 
 mod kept;
 
-use super::assembly::{fill_newmark, Assembler, CellWork, Coefficients, ElementBlocks, Material};
-use super::assembly::{StepOutput, StepState};
+use super::assembly::{fill_newmark, Assembler, CellWork, ElementBlocks, Material};
+use super::assembly::{StepCells, StepOutput, StepState};
 use super::collision::{add_ground_forces, crossings, Crossing};
 use super::element::POLAR_ITERATIONS;
 use super::grid::Grid;
@@ -54,8 +54,8 @@ pub struct StepInfo {
     /// seconds in assembly (rotations, stiffness, corotation forces, A and b)
     pub assembly_s: f64,
     /// the part of `assembly_s` spent on rotations and stiffness values (the thesis' "matrix
-    /// assembly"; in a grid step the cell and row sweeps, which also compute `K u`, the
-    /// corotation and body forces, the upper blocks of `A` and most of `b`, all counted here;
+    /// assembly"; in a grid step the one pass over cells and rows, which also computes `K u`,
+    /// the corotation and body forces, all blocks of `A` and most of `b`, all counted here;
     /// a step's `K` values go into `A` without being stored)
     pub stiffness_s: f64,
     /// seconds in collision forces
@@ -252,10 +252,10 @@ impl Simulation {
         (rot, blocks)
     }
 
-    /// The cell and row sweeps of a step's assembly ([`super::assembly`]) for the current state
-    /// into the buffers of the last step: the upper blocks of `A`, `f = M g`, `b` without
-    /// `dt f` (and with `keep_k` the upper blocks of `K`, returned for the last pass to
-    /// complete). Returns the seconds spent, all counted as rotations and stiffness.
+    /// The pass over cells and rows of a step's assembly ([`super::assembly`]) for the current
+    /// state into the buffers of the last step: `A`, `f = M g`, `b` without `dt f` (and with
+    /// `keep_k` also `K`, returned). Returns the seconds spent, all counted as rotations and
+    /// stiffness.
     fn assemble(&mut self, keep_k: bool) -> (f64, Option<SparseMatrix<Mat3<f64>>>) {
         let t = Instant::now();
         let m = self.material();
@@ -267,37 +267,28 @@ impl Simulation {
             None
         };
         let scale = self.model.stiffness_scale.as_deref();
-        let nw = Coefficients::new(&self.model);
         let mut rot = self
             .model
             .corotation
             .then(|| self.rotations.take().unwrap_or_default());
-        self.assembler.rotations_and_cell_rhs(
-            &self.grid,
-            &m,
-            &self.u,
-            (nw.cu, nw.dt),
-            POLAR_ITERATIONS,
-            &blocks,
-            &self.dirichlet,
-            scale,
-            rot.as_mut(),
-            &mut self.cell_work,
-        );
         let state = StepState {
             model: &self.model,
             mass: &self.mass,
             u: &self.u,
             v: &self.v,
         };
-        self.assembler.assemble_step(
-            &self.grid,
-            &m,
-            &blocks,
-            rot.is_some(),
-            &self.cell_work,
-            &self.dirichlet,
+        let cells = StepCells {
+            grid: &self.grid,
+            m: &m,
+            blocks: &blocks,
+            iterations: POLAR_ITERATIONS,
+            dirichlet: &self.dirichlet,
             scale,
+        };
+        self.assembler.assemble_step(
+            &cells,
+            rot.as_mut(),
+            &mut self.cell_work,
             &state,
             StepOutput {
                 k: k.as_mut(),
@@ -350,7 +341,7 @@ impl Simulation {
         let mut info = StepInfo::default();
         let (dt, theta) = (self.model.dt, self.model.theta);
         let t0 = Instant::now();
-        let (stiffness_s, mut k) = self.assemble(keep_k);
+        let (stiffness_s, k) = self.assemble(keep_k);
         info.stiffness_s = stiffness_s;
         if let Some(e) = &self.model.external_force {
             e.add_to(&mut self.f);
@@ -376,9 +367,8 @@ impl Simulation {
         info.collision_s = t1.elapsed().as_secs_f64();
 
         let t2 = Instant::now();
-        // the lower blocks of A (and K), b += dt f
-        self.assembler
-            .finish_step(dt, &self.f, k.as_mut(), &mut self.a, &mut self.b);
+        // b += dt f
+        self.assembler.finish_step(dt, &self.f, &mut self.b);
         if let Some(k) = k {
             self.k.keep(k);
         }

@@ -19,7 +19,7 @@ use super::super::element::{
     cell_rotations4, comb, corner_offsets, lanes3, padded_transpose, ElementBlocks, PaddedBlock, OPPOSITE,
 };
 use super::super::grid::{Cell, Grid};
-use super::{for_each_item, Assembler, Material, CELL_CHUNK};
+use super::{Assembler, Material};
 use gpumat::simd::{dispatch, Kernel, Portable, Simd4};
 use gpumat::{Mat3, Matrix, Vec3};
 use rayon::prelude::*;
@@ -32,72 +32,6 @@ impl Assembler {
             .par_iter()
             .map(|c| cell_rotation(grid, us, c, iterations))
             .collect()
-    }
-
-    /// One sweep over the cells (module docs): with `rotations`, the rotation `R_e`
-    /// (eq. 4.4.8-4.4.9, `iterations` polar steps) of each cell into it (else `R_e = I`), and
-    /// with the cell's blocks at hand its padded `R_e^T` and its share `c_(e, i)` of the Newmark
-    /// right-hand side (coefficients `cu`, `dt`) into `work`. The buffers are resized to the
-    /// cell count and reused from step to step.
-    #[allow(clippy::too_many_arguments)]
-    pub fn rotations_and_cell_rhs(
-        &self,
-        grid: &Grid,
-        m: &Material,
-        u: &Matrix<Vec3<f64>>,
-        (cu, dt): (f64, f64),
-        iterations: usize,
-        blocks: &ElementBlocks,
-        dirichlet: &[bool],
-        scale: Option<&[f64]>,
-        rotations: Option<&mut Vec<Mat3<f64>>>,
-        work: &mut CellWork,
-    ) {
-        let nc = grid.cells.len();
-        assert!(
-            self.cell_dofs.len() == nc
-                && dirichlet.len() == nc
-                && scale.map_or(true, |s| s.len() == nc)
-                && u.rows() == grid.dofs(),
-            "cutfem: cell data of another size"
-        );
-        work.rt.resize(nc, [[0.0; 4]; 3]);
-        work.rhs.resize(nc, [Vec3::default(); 8]);
-        let sweep = CellSweep {
-            asm: self,
-            grid,
-            m,
-            us: u.as_slice(),
-            x: corner_offsets(grid.h()),
-            cu,
-            dt,
-            iterations,
-            blocks,
-            dirichlet,
-            scale,
-        };
-        let rot_chunks: Vec<Option<&mut [Mat3<f64>]>> = match rotations {
-            Some(r) => {
-                r.resize(nc, Mat3::default());
-                r.chunks_mut(CELL_CHUNK).map(Some).collect()
-            }
-            None => (0..nc.div_ceil(CELL_CHUNK)).map(|_| None).collect(),
-        };
-        let items: Vec<_> = rot_chunks
-            .into_iter()
-            .zip(work.rt.chunks_mut(CELL_CHUNK))
-            .zip(work.rhs.chunks_mut(CELL_CHUNK))
-            .enumerate()
-            .collect();
-        for_each_item(self.parallel(), items, |(ci, ((r, rt), c))| {
-            dispatch(Chunk {
-                sweep: &sweep,
-                e0: ci * CELL_CHUNK,
-                r,
-                rt,
-                c,
-            })
-        });
     }
 
     /// Adds the corotation forces `f_i -= s_e sum_j R K_ij (R^T x_j - x_j)` to `f`.
@@ -129,8 +63,8 @@ impl Assembler {
     }
 }
 
-/// Per-cell data of a step, filled by [`Assembler::rotations_and_cell_rhs`] and reused from
-/// step to step: the padded transposed rotations (for the rotation kernel) and each cell's
+/// Per-cell data of a step, filled by the cell sweep ([`CellSweep`]) and reused from step
+/// to step: the padded transposed rotations (for the rotation kernel) and each cell's
 /// share of the Newmark right-hand side at its corners.
 #[derive(Clone, Debug, Default)]
 pub struct CellWork {
@@ -145,19 +79,48 @@ impl CellWork {
     }
 }
 
-/// The inputs of the cell sweep of [`Assembler::rotations_and_cell_rhs`].
-struct CellSweep<'a> {
-    asm: &'a Assembler,
-    grid: &'a Grid,
-    m: &'a Material,
-    us: &'a [Vec3<f64>],
-    x: [Vec3<f64>; 8],
-    cu: f64,
-    dt: f64,
-    iterations: usize,
-    blocks: &'a ElementBlocks,
-    dirichlet: &'a [bool],
-    scale: Option<&'a [f64]>,
+/// The inputs of the cell sweep (module docs): displacement `us`, corner offsets `x`
+/// ([`corner_offsets`]), coefficients `cu` and `dt`, polar iterations, per-cell data.
+pub(super) struct CellSweep<'a> {
+    pub(super) asm: &'a Assembler,
+    pub(super) grid: &'a Grid,
+    pub(super) m: &'a Material,
+    pub(super) us: &'a [Vec3<f64>],
+    pub(super) x: [Vec3<f64>; 8],
+    pub(super) cu: f64,
+    pub(super) dt: f64,
+    pub(super) iterations: usize,
+    pub(super) blocks: &'a ElementBlocks,
+    pub(super) dirichlet: &'a [bool],
+    pub(super) scale: Option<&'a [f64]>,
+}
+
+impl CellSweep<'_> {
+    /// The sweep over the cells `e0..e0 + rt.len()`: with `r`, their rotations `R_e`
+    /// (eq. 4.4.8-4.4.9) into it (else `R_e = I`), their padded `R_e^T` into `rt` and their
+    /// shares `c_(e, i)` of the Newmark right-hand side into `c`, four cells at a time in
+    /// AVX2 registers where the CPU has them (the same values on every backend).
+    pub(super) fn run(
+        &self,
+        e0: usize,
+        r: Option<&mut [Mat3<f64>]>,
+        rt: &mut [PaddedBlock],
+        c: &mut [[Vec3<f64>; 8]],
+    ) {
+        assert!(
+            e0 + rt.len() <= self.grid.cells.len()
+                && c.len() == rt.len()
+                && r.as_ref().map_or(true, |r| r.len() == rt.len()),
+            "cutfem: cell sweep buffers of another size"
+        );
+        dispatch(Chunk {
+            sweep: self,
+            e0,
+            r,
+            rt,
+            c,
+        })
+    }
 }
 
 /// Cells `e0..e0 + rt.len()` of the sweep, in AVX2 registers where the CPU has them (same

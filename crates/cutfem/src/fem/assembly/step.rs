@@ -1,4 +1,5 @@
-//! A step's row sweep and its last pass (see [`super`] and [`super::cells`]).
+//! A step's row sweep and its last pass (see [`super`], [`super::cells`] and
+//! [`super::pipeline`]).
 //!
 //! The row sweep computes each block of `K` on and above the diagonal as the fixed-order sum
 //! of its element blocks and turns it at once into the block of the Newmark matrix
@@ -8,17 +9,27 @@
 //! does not depend on the forces added later:
 //! `b_r = cm m_r u_r + cv m_r v_r + sum_(e, q at r) c_(e, q)`, with the cells' shares
 //! `c_(e, q)` of [`super::cells`] (the stiffness term `cu K u` and the corotation force) summed
-//! in [`Assembler::cells_of`] order. After the external and ground forces have been added to
-//! `f`, the last pass ([`Assembler::finish_step`]) writes each block of `A` (and `K`) below
-//! the diagonal as the transpose of its mirror and adds `dt f_r` to `b_r`.
+//! in [`Assembler::cells_of`] order. [`Assembler::assemble_step`] runs the cell sweep, this
+//! row sweep and the mirroring of the blocks below the diagonal (each the transpose of its
+//! mirror above it) unit by unit in one parallel pass ([`super::pipeline`]). After the
+//! external and ground forces have been added to `f`, the last pass
+//! ([`Assembler::finish_step`]) adds `dt f_r` to `b_r`.
 
-use super::cells::CellWork;
+use super::cells::{CellSweep, CellWork};
 use super::newmark::Coefficients;
-use super::{for_each_item, Assembler, Cells, ElementBlocks, Material, RowSink, ROW_CHUNK};
+use super::pipeline::Parts;
+use super::{Assembler, Cells, ElementBlocks, EntryWriter, Material, RowSink};
+use crate::fem::element::corner_offsets;
 use crate::fem::grid::Grid;
 use crate::fem::model::Model;
 use gpumat::{Mat3, Matrix, Scalar, SparseMatrix, Vec3};
 use std::sync::Arc;
+
+/// The fewest units for which a step's pass runs on the rayon pool. The pass starts on the
+/// calling thread and the workers join as they wake ([`super::pipeline`]), so even the
+/// smallest grids of the tables (Table B.5 at r = 5: 4 units) gain from a second thread; a
+/// grid of one or two units has too little work to share.
+const PARALLEL_UNITS: usize = 3;
 
 /// The state and coefficients a step's row sweep reads besides the cells.
 pub(crate) struct StepState<'a> {
@@ -32,7 +43,7 @@ pub(crate) struct StepState<'a> {
     pub v: &'a Matrix<Vec3<f64>>,
 }
 
-/// The outputs of a step's row sweep: `K` when it is kept, `A`, `b`, `f`.
+/// The outputs of a step's pass: `K` when it is kept, `A`, `b`, `f`.
 pub(crate) struct StepOutput<'a> {
     pub k: Option<&'a mut SparseMatrix<Mat3<f64>>>,
     pub a: &'a mut SparseMatrix<Mat3<f64>>,
@@ -40,34 +51,33 @@ pub(crate) struct StepOutput<'a> {
     pub f: &'a mut Matrix<Vec3<f64>>,
 }
 
+/// The cells of a step's pass: material, element blocks, polar iterations, Dirichlet cells,
+/// stiffness scale.
+pub(crate) struct StepCells<'a> {
+    pub grid: &'a Grid,
+    pub m: &'a Material,
+    pub blocks: &'a ElementBlocks,
+    pub iterations: usize,
+    pub dirichlet: &'a [bool],
+    pub scale: Option<&'a [f64]>,
+}
+
 impl Assembler {
-    /// A step's row sweep (module docs): the blocks of `A` (and of `K` when `out.k` is given)
-    /// on and above the diagonal, `f = M g` and `b` without `dt f`. `work`: the cell sweep's
-    /// data ([`Assembler::rotations_and_cell_rhs`] for the same state); `corotated`: whether
-    /// its rotations enter the blocks.
-    #[allow(clippy::too_many_arguments)]
+    /// A step's assembly but for the forces added afterwards, as one pass over the work units
+    /// of [`super::pipeline`]: per unit, the cell sweep (the rotations into `rotations` when
+    /// given, else `R = I`, and the cells' shares of `b` into `work`), the row sweep (the
+    /// blocks of `A`, and of `K` when `out.k` is given, on and above the diagonal, `f = M g`
+    /// and `b` without `dt f`) and the blocks below the diagonal from their mirrors. The
+    /// buffers are resized to the cell count and reused from step to step.
     pub(crate) fn assemble_step(
         &self,
-        grid: &Grid,
-        m: &Material,
-        blocks: &ElementBlocks,
-        corotated: bool,
-        work: &CellWork,
-        dirichlet: &[bool],
-        scale: Option<&[f64]>,
+        c: &StepCells<'_>,
+        rotations: Option<&mut Vec<Mat3<f64>>>,
+        work: &mut CellWork,
         st: &StepState<'_>,
         out: StepOutput<'_>,
     ) {
-        let cells = Cells {
-            grid,
-            m,
-            blocks,
-            rotations: corotated.then_some(&work.rt[..]),
-            dirichlet,
-            scale,
-        };
-        cells.check();
-        let n = self.pattern.rows();
+        let (grid, n, nc) = (c.grid, self.pattern.rows(), c.grid.cells.len());
         let (ms, us, vs) = (st.mass.as_slice(), st.u.as_slice(), st.v.as_slice());
         assert!(
             [
@@ -75,10 +85,13 @@ impl Assembler {
                 us.len(),
                 vs.len(),
                 out.b.as_slice().len(),
-                out.f.as_slice().len()
-            ] == [n; 5]
-                && work.rhs.len() == grid.cells.len(),
-            "cutfem: step vectors of another size"
+                out.f.as_slice().len(),
+                grid.dofs()
+            ] == [n; 6]
+                && self.cell_dofs.len() == nc
+                && c.dirichlet.len() == nc
+                && c.scale.map_or(true, |s| s.len() == nc),
+            "cutfem: step data of another size"
         );
         for mat in std::iter::once(&*out.a).chain(out.k.as_deref()) {
             assert!(
@@ -86,66 +99,104 @@ impl Assembler {
                 "cutfem: step matrix with a foreign pattern"
             );
         }
-        let rows = StepRows {
-            nw: Coefficients::new(st.model),
-            gravity: st.model.gravity,
-            ms,
+        let nw = Coefficients::new(st.model);
+        let sweep = CellSweep {
+            asm: self,
+            grid,
+            m: c.m,
             us,
-            vs,
-            cell_rhs: &work.rhs,
+            x: corner_offsets(grid.h()),
+            cu: nw.cu,
+            dt: nw.dt,
+            iterations: c.iterations,
+            blocks: c.blocks,
+            dirichlet: c.dirichlet,
+            scale: c.scale,
         };
+        work.rt.resize(nc, [[0.0; 4]; 3]);
+        work.rhs.resize(nc, [Vec3::default(); 8]);
+        let corotated = rotations.is_some();
+        let rot = rotations.map(|r| {
+            r.resize(nc, Mat3::default());
+            Parts::new(r)
+        });
+        let (rt, rhs) = (Parts::new(&mut work.rt), Parts::new(&mut work.rhs));
+        let a = Parts::new(out.a.batch_values_mut(0));
+        let k = out.k.map(|k| Parts::new(k.batch_values_mut(0)));
+        let (b, f) = (Parts::new(out.b.as_mut_slice()), Parts::new(out.f.as_mut_slice()));
+        let (aw, kw) = (EntryWriter::of(a), k.map(EntryWriter::of));
         let rp = self.pattern.row_ptr();
-        let k_chunks: Vec<Option<&mut [Mat3<f64>]>> = match out.k {
-            Some(k) => self
-                .pattern
-                .split_rows_mut(k.batch_values_mut(0), ROW_CHUNK)
-                .into_iter()
-                .map(|(_, v)| Some(v))
-                .collect(),
-            None => (0..n.div_ceil(ROW_CHUNK)).map(|_| None).collect(),
-        };
-        let items: Vec<_> = self
-            .pattern
-            .split_rows_mut(out.a.batch_values_mut(0), ROW_CHUNK)
-            .into_iter()
-            .zip(k_chunks)
-            .zip(out.b.as_mut_slice().chunks_mut(ROW_CHUNK))
-            .zip(out.f.as_mut_slice().chunks_mut(ROW_CHUNK))
-            .collect();
-        for_each_item(self.parallel(), items, |((((r0, a), k), b), f)| {
-            let sink = StepSink {
-                rows: &rows,
-                base: rp[r0],
-                r0,
-                a,
-                k,
-                b,
-                f,
-                acc: Vec3::ZERO,
+        let units = &self.units;
+        units.run(units.count() >= PARALLEL_UNITS, |u, wait| {
+            let cells = units.cells(u);
+            // SAFETY: the cells of unit `u` are borrowed by this stage alone; the other units'
+            // stages read them only after `cells_done` below has published them.
+            unsafe {
+                sweep.run(
+                    cells.start,
+                    rot.map(|r| r.part_mut(cells.clone())),
+                    rt.part_mut(cells.clone()),
+                    rhs.part_mut(cells.clone()),
+                );
+            }
+            wait.cells_done();
+            let (rows, read) = (units.rows(u), units.cells_read_by_rows(u));
+            // SAFETY: the cells `read` belong to units whose cell stage is published (waited
+            // for above): no task writes them any more in this pass.
+            let (rt, rhs) = unsafe { (rt.part(read.clone()), rhs.part(read.clone())) };
+            let cells = Cells {
+                grid,
+                m: c.m,
+                blocks: c.blocks,
+                rotations: corotated.then_some(rt),
+                cell_base: read.start,
+                dirichlet: c.dirichlet,
+                scale: c.scale,
             };
-            self.upper_rows(&cells, r0, sink)
+            let step_rows = StepRows {
+                nw: Coefficients::new(st.model),
+                gravity: st.model.gravity,
+                ms,
+                us,
+                vs,
+                cell_rhs: rhs,
+                cell_base: read.start,
+            };
+            let entries = rp[rows.start]..rp[rows.end];
+            // SAFETY: the blocks, `b` and `f` of unit `u`'s rows are written by this stage
+            // alone; the other units read its blocks only after `rows_done` below has
+            // published them, and its own mirror stage runs after this borrow has ended.
+            let sink = unsafe {
+                StepSink {
+                    rows: &step_rows,
+                    base: entries.start,
+                    r0: rows.start,
+                    a: a.part_mut(entries.clone()),
+                    k: k.map(|k| k.part_mut(entries.clone())),
+                    b: b.part_mut(rows.clone()),
+                    f: f.part_mut(rows.clone()),
+                    acc: Vec3::ZERO,
+                }
+            };
+            self.upper_rows(&cells, rows.clone(), sink);
+            wait.rows_done();
+            // SAFETY: the blocks below the diagonal of unit `u`'s rows are written by this
+            // stage alone and read by no task; their mirrors lie in rows of units whose row
+            // stage is published (waited for above), which no task writes any more.
+            unsafe { self.mirror_rows(rows, aw, kw) };
         });
     }
 
-    /// A step's last pass (module docs): the blocks of `a` (and `k`) below the diagonal from
-    /// their mirrors, and `b += dt f`.
-    pub(crate) fn finish_step(
-        &self,
-        dt: f64,
-        f: &Matrix<Vec3<f64>>,
-        k: Option<&mut SparseMatrix<Mat3<f64>>>,
-        a: &mut SparseMatrix<Mat3<f64>>,
-        b: &mut Matrix<Vec3<f64>>,
-    ) {
-        for mat in std::iter::once(&*a).chain(k.as_deref()) {
-            assert!(
-                Arc::ptr_eq(mat.pattern(), &self.pattern) && mat.batches() == 1,
-                "cutfem: step matrix with a foreign pattern"
-            );
+    /// A step's last pass, after the external and ground forces have been added to `f`:
+    /// `b += dt f`.
+    pub(crate) fn finish_step(&self, dt: f64, f: &Matrix<Vec3<f64>>, b: &mut Matrix<Vec3<f64>>) {
+        assert!(
+            b.as_slice().len() == f.as_slice().len(),
+            "cutfem: vectors of another size"
+        );
+        for (b, f) in b.as_mut_slice().iter_mut().zip(f.as_slice()) {
+            *b = b.add(f.scale(dt));
         }
-        let k = k.map(|k| k.batch_values_mut(0));
-        let rhs = (b.as_mut_slice(), f.as_slice(), dt);
-        self.mirror_lower(self.parallel(), a.batch_values_mut(0), k, Some(rhs));
     }
 }
 
@@ -156,7 +207,9 @@ struct StepRows<'a> {
     ms: &'a [f64],
     us: &'a [Vec3<f64>],
     vs: &'a [Vec3<f64>],
+    /// the cells' shares of `b`, from cell `cell_base` on
     cell_rhs: &'a [[Vec3<f64>; 8]],
+    cell_base: usize,
 }
 
 /// The outputs of one chunk of rows, from row `r0` (whose first entry is `base`).
@@ -196,7 +249,7 @@ impl RowSink for StepSink<'_> {
 
     #[inline(always)]
     fn cell(&mut self, e: usize, i: usize) {
-        self.acc = self.acc.add(self.rows.cell_rhs[e][i]);
+        self.acc = self.acc.add(self.rows.cell_rhs[e - self.rows.cell_base][i]);
     }
 
     #[inline(always)]
@@ -266,18 +319,21 @@ mod tests {
         })
     }
 
-    /// The step's passes give the same bits on 1 and 3 threads; `K` and `A` are bit for bit
+    /// The step's passes give the same bits on 1, 3 and 8 threads; `K` and `A` are bit for bit
     /// those of the plain stiffness assembly and of the Newmark system as gpumat expressions.
     /// `b` sums its terms in another order than the plain expression (the stiffness and
     /// corotation terms per cell, then per node), so it agrees to rounding: 1e-12 relative.
     #[test]
     fn step_assembly_is_thread_independent_and_matches_the_plain_passes() {
         for (corotation, scaled) in [(true, false), (true, true), (false, true)] {
-            let (one, three) = (sim(1, corotation, scaled), sim(3, corotation, scaled));
-            assert_eq!(bits_m(one.stiffness()), bits_m(three.stiffness()));
-            assert_eq!(bits_m(one.newmark_matrix()), bits_m(three.newmark_matrix()));
-            assert_eq!(bits_v(one.newmark_rhs()), bits_v(three.newmark_rhs()));
-            assert_eq!(bits_v(one.force()), bits_v(three.force()));
+            let one = sim(1, corotation, scaled);
+            // 8 threads on fewer cores: workers are preempted mid-unit and the others wait
+            for other in [sim(3, corotation, scaled), sim(8, corotation, scaled)] {
+                assert_eq!(bits_m(one.stiffness()), bits_m(other.stiffness()));
+                assert_eq!(bits_m(one.newmark_matrix()), bits_m(other.newmark_matrix()));
+                assert_eq!(bits_v(one.newmark_rhs()), bits_v(other.newmark_rhs()));
+                assert_eq!(bits_v(one.force()), bits_v(other.force()));
+            }
 
             let s = &one;
             let (lambda, mu) = s.model.lame();
