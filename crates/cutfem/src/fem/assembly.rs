@@ -36,6 +36,7 @@
 //! [`gpumat::simd::Simd4`] and run in AVX2 registers where the CPU has them (same values).
 
 mod cells;
+mod mirror;
 mod newmark;
 mod pipeline;
 mod step;
@@ -48,7 +49,7 @@ use super::element::{lanes3, padded_transpose, rotate_add, PaddedBlock, Stiffnes
 pub use super::element::{rotate_block, ElementBlocks};
 use super::grid::Grid;
 use gpumat::simd::{dispatch, Kernel, Simd4};
-use gpumat::{Mat3, Matrix, Scalar, SparseMatrix, SparsityPattern, Vec3};
+use gpumat::{Mat3, Matrix, SparseMatrix, SparsityPattern, Vec3};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -70,41 +71,6 @@ fn for_each_item<T: Send>(parallel: bool, items: Vec<T>, f: impl Fn(T) + Send + 
         items.into_par_iter().for_each(f);
     } else {
         items.into_iter().for_each(f);
-    }
-}
-
-/// The values of a sparse matrix shared by parallel tasks that write disjoint entries (the
-/// mirroring of the blocks below the diagonal).
-#[derive(Clone, Copy)]
-struct EntryWriter(*mut Mat3<f64>, usize);
-
-// SAFETY: the pointer is only dereferenced through `write`/`read`, whose callers guarantee
-// that no entry is written by two tasks or read while written (see their call sites).
-unsafe impl Send for EntryWriter {}
-// SAFETY: as above.
-unsafe impl Sync for EntryWriter {}
-
-impl EntryWriter {
-    /// The entries of the buffer of `p`.
-    fn of(p: pipeline::Parts<Mat3<f64>>) -> Self {
-        let (ptr, len) = p.raw();
-        Self(ptr, len)
-    }
-    /// # Safety
-    /// `k` is written by no other task and read by none while this runs.
-    #[inline(always)]
-    unsafe fn write(&self, k: usize, v: Mat3<f64>) {
-        assert!(k < self.1);
-        // SAFETY: in bounds (checked) and exclusive (the caller's contract).
-        unsafe { self.0.add(k).write(v) }
-    }
-    /// # Safety
-    /// `k` is written by no task while this runs.
-    #[inline(always)]
-    unsafe fn read(&self, k: usize) -> Mat3<f64> {
-        assert!(k < self.1);
-        // SAFETY: in bounds (checked), initialized and not written concurrently (contract).
-        unsafe { self.0.add(k).read() }
     }
 }
 
@@ -304,48 +270,6 @@ impl Assembler {
     /// Whether the passes of this pattern run on the rayon pool (see [`for_each_item`]).
     fn parallel(&self) -> bool {
         self.pattern.nnz() >= gpumat::expr::PAR_THRESHOLD
-    }
-
-    /// Each block below the diagonal of `k` from its mirror above it, in place.
-    fn mirror_lower(&self, parallel: bool, k: &mut [Mat3<f64>]) {
-        let n = self.pattern.rows();
-        assert!(k.len() == self.pattern.nnz(), "cutfem: values of another pattern");
-        let kw = EntryWriter(k.as_mut_ptr(), k.len());
-        let items: Vec<usize> = (0..n.div_ceil(ROW_CHUNK)).collect();
-        for_each_item(parallel, items, |ci| {
-            let rows = ci * ROW_CHUNK..((ci + 1) * ROW_CHUNK).min(n);
-            // SAFETY: the blocks below the diagonal of `rows` are written by this task alone;
-            // their mirrors lie on or above the diagonal, written by the finished row sweep and
-            // only read in this pass.
-            unsafe { self.mirror_rows(rows, kw, None) }
-        });
-    }
-
-    /// The blocks below the diagonal of the rows `rows` of `a` (and `k`) from their mirrors.
-    ///
-    /// # Safety
-    /// No other task reads or writes the blocks below the diagonal of `rows`, and no task
-    /// writes their mirrors (the blocks on or above the diagonal of the rows they belong to)
-    /// while this runs.
-    unsafe fn mirror_rows(&self, rows: std::ops::Range<usize>, a: EntryWriter, k: Option<EntryWriter>) {
-        let rp = self.pattern.row_ptr();
-        gpumat::simd::with_avx2(
-            #[inline(always)]
-            || {
-                for r in rows {
-                    for kk in rp[r]..self.diag[r] as usize {
-                        let m = self.mirror[kk] as usize;
-                        // SAFETY: the caller's contract.
-                        unsafe {
-                            a.write(kk, a.read(m).transpose());
-                            if let Some(k) = &k {
-                                k.write(kk, k.read(m).transpose());
-                            }
-                        }
-                    }
-                }
-            },
-        )
     }
 
     /// The upper blocks (from each row's diagonal on) of the rows `rows` into `sink`, in

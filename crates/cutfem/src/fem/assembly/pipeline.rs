@@ -212,11 +212,6 @@ impl<T> Parts<T> {
         Self(s.as_mut_ptr(), s.len())
     }
 
-    /// The buffer's pointer and length.
-    pub(super) fn raw(&self) -> (*mut T, usize) {
-        (self.0, self.1)
-    }
-
     /// Part `r`, borrowed exclusively.
     ///
     /// # Safety
@@ -227,6 +222,34 @@ impl<T> Parts<T> {
         assert!(r.start <= r.end && r.end <= self.1, "cutfem: part out of range");
         // SAFETY: in bounds (checked); exclusive and alive (the caller's contract).
         unsafe { std::slice::from_raw_parts_mut(self.0.add(r.start), r.len()) }
+    }
+
+    /// Element `k`.
+    ///
+    /// # Safety
+    /// No task writes element `k` while this runs, and it is initialized.
+    #[inline(always)]
+    pub(super) unsafe fn read(&self, k: usize) -> T
+    where
+        T: Copy,
+    {
+        assert!(k < self.1, "cutfem: part out of range");
+        // SAFETY: in bounds (checked), initialized and not written concurrently (contract).
+        unsafe { self.0.add(k).read() }
+    }
+
+    /// Writes `v` into element `k`.
+    ///
+    /// # Safety
+    /// No other task reads or writes element `k` while this runs, and no borrow of it is alive.
+    #[inline(always)]
+    pub(super) unsafe fn write(&self, k: usize, v: T)
+    where
+        T: Copy,
+    {
+        assert!(k < self.1, "cutfem: part out of range");
+        // SAFETY: in bounds (checked) and exclusive (the caller's contract).
+        unsafe { self.0.add(k).write(v) }
     }
 
     /// Part `r`, borrowed shared.

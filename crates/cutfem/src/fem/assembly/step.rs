@@ -18,7 +18,7 @@
 use super::cells::{CellSweep, CellWork};
 use super::newmark::Coefficients;
 use super::pipeline::Parts;
-use super::{Assembler, Cells, ElementBlocks, EntryWriter, Material, RowSink};
+use super::{Assembler, Cells, ElementBlocks, Material, RowSink};
 use crate::fem::element::corner_offsets;
 use crate::fem::grid::Grid;
 use crate::fem::model::Model;
@@ -124,7 +124,6 @@ impl Assembler {
         let a = Parts::new(out.a.batch_values_mut(0));
         let k = out.k.map(|k| Parts::new(k.batch_values_mut(0)));
         let (b, f) = (Parts::new(out.b.as_mut_slice()), Parts::new(out.f.as_mut_slice()));
-        let (aw, kw) = (EntryWriter::of(a), k.map(EntryWriter::of));
         let rp = self.pattern.row_ptr();
         let units = &self.units;
         units.run(units.count() >= PARALLEL_UNITS, |u, wait| {
@@ -183,7 +182,7 @@ impl Assembler {
             // SAFETY: the blocks below the diagonal of unit `u`'s rows are written by this
             // stage alone and read by no task; their mirrors lie in rows of units whose row
             // stage is published (waited for above), which no task writes any more.
-            unsafe { self.mirror_rows(rows, aw, kw) };
+            unsafe { self.mirror_rows(rows, a, k) };
         });
     }
 
