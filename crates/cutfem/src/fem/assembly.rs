@@ -41,7 +41,7 @@ mod newmark;
 mod pipeline;
 mod step;
 
-pub use cells::CellWork;
+pub(crate) use cells::CellWork;
 pub(crate) use newmark::fill_newmark;
 pub(crate) use step::{StepCells, StepOutput, StepState};
 

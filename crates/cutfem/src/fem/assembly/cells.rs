@@ -67,16 +67,9 @@ impl Assembler {
 /// to step: the padded transposed rotations (for the rotation kernel) and each cell's
 /// share of the Newmark right-hand side at its corners.
 #[derive(Clone, Debug, Default)]
-pub struct CellWork {
+pub(crate) struct CellWork {
     pub(super) rt: Vec<PaddedBlock>,
     pub(super) rhs: Vec<[Vec3<f64>; 8]>,
-}
-
-impl CellWork {
-    /// The corner shares `c_(e, i)` of the right-hand side of each cell from the last sweep.
-    pub fn rhs(&self) -> &[[Vec3<f64>; 8]] {
-        &self.rhs
-    }
 }
 
 /// The inputs of the cell sweep (module docs): displacement `us`, corner offsets `x`

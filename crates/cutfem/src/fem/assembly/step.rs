@@ -153,7 +153,7 @@ impl Assembler {
                 scale: c.scale,
             };
             let step_rows = StepRows {
-                nw: Coefficients::new(st.model),
+                nw: &nw,
                 gravity: st.model.gravity,
                 ms,
                 us,
@@ -201,7 +201,7 @@ impl Assembler {
 
 /// What the step's row sweep reads per row.
 struct StepRows<'a> {
-    nw: Coefficients,
+    nw: &'a Coefficients,
     gravity: Vec3<f64>,
     ms: &'a [f64],
     us: &'a [Vec3<f64>],
@@ -227,7 +227,7 @@ struct StepSink<'a> {
 impl RowSink for StepSink<'_> {
     #[inline(always)]
     fn block(&mut self, r: usize, kk: usize, diagonal: bool, k: Mat3<f64>) {
-        let nw = &self.rows.nw;
+        let nw = self.rows.nw;
         let m = if diagonal {
             nw.diagonal(self.rows.ms[r])
         } else {
@@ -241,7 +241,7 @@ impl RowSink for StepSink<'_> {
 
     #[inline(always)]
     fn row_start(&mut self, r: usize) {
-        let (w, nw) = (self.rows, &self.rows.nw);
+        let (w, nw) = (self.rows, self.rows.nw);
         let m = w.ms[r];
         self.acc = w.us[r].scale(m).scale(nw.cm).add(w.vs[r].scale(m).scale(nw.cv));
     }
