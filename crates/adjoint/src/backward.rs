@@ -137,16 +137,7 @@ pub fn step_adjoint(
             let r = rotations.map_or(Mat3::identity(), |r| r[e]);
             // the cell's term is s_e times the homogeneous one (linear in lambda, mu)
             let se = scale.map_or(1.0, |s| s[e]);
-            let (r_bar, dl, dm) = cell_elastic_adjoint(
-                tables,
-                &c.integrals.volume,
-                blocks.cell(e),
-                &r,
-                &lam_e,
-                &a_e,
-                &x,
-                dt,
-            );
+            let (r_bar, dl, dm) = cell_elastic_adjoint(blocks.set(e), &r, &lam_e, &a_e, &x, dt);
             let mut ub = [Vec3::default(); 8];
             if rotations.is_some() {
                 let u_e: [Vec3<f64>; 8] = std::array::from_fn(|q| us[d(q)]);
@@ -177,10 +168,9 @@ pub fn step_adjoint(
     // Nitsche terms: linear in (lambda, mu), independent of u
     let w_at = |q: usize| us[q] * cw - uns[q] * cn;
     for (e, c) in grid.cells.iter().enumerate() {
-        if !sim.dirichlet[e] {
+        let Some(ci) = &sim.dirichlet[e] else {
             continue;
-        }
-        let ci = &c.integrals;
+        };
         let n = Vec3::from_array(ci.normal);
         let se = scale.map_or(1.0, |s| s[e]);
         for i in 0..8 {

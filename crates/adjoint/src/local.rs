@@ -27,15 +27,17 @@
 //! dS/dR = sum_i lam_i y_i^T + sum_j a_j z_j^T,
 //! ```
 //!
-//! and since `K_ij = sum_c w_v(c) (lambda K^lambda_ij(c) + mu K^mu_ij(c))` (eq. 4.4.5), with the
-//! corner gradient tensors `G_l(c) = sum_i lt_i grad N_i(c)^T`, `G_b(c) = sum_j b_j grad N_j(c)^T`:
+//! and with the displacement gradients `G_l = sum_i lt_i grad N_i^T`, `G_b = sum_j b_j grad N_j^T`
+//! (the bubbles of the incompatible modes included, at their condensed amplitudes):
 //!
 //! ```text
-//! dS/dlambda = sum_c w_v(c) tr G_l tr G_b,    dS/dmu = sum_c w_v(c) (tr(G_l G_b) + G_l : G_b)
+//! dS/dlambda = int tr G_l tr G_b,    dS/dmu = int (tr(G_l G_b) + G_l : G_b)
 //! ```
 //!
-//! (eq. 5.5.5: the adjoints of the Lame parameters). Without corotation `R = I` and the same
-//! formulas hold (the corotation force vanishes).
+//! over the cell's inside part (eq. 5.5.5: the adjoints of the Lame parameters; for the thesis'
+//! corner rule the integral is `sum_c w_v(c)` of the integrand at the corners), computed by
+//! [`cutfem::fem::element::ElementSet::lame_derivatives`]. Without corotation `R = I` and the
+//! same formulas hold (the corotation force vanishes).
 //!
 //! # Contact (Alg. 5.5)
 //!
@@ -45,7 +47,7 @@
 //! explicit scheme `L_c = dt Lambda (-k S(d) - theta dt k S'(d) n . v_c)`.
 
 use cutfem::fem::collision::{softmin0, softmin0_derivative, ContactScheme, Ground};
-use cutfem::fem::element::StiffnessTables;
+use cutfem::fem::element::ElementSet;
 use gpumat::{Mat3, Vec3};
 
 /// Frobenius inner product `A : B`.
@@ -122,17 +124,16 @@ pub fn cell_elastic_value(
 }
 
 /// The derivatives of the cell's elastic term (module docs): `(dS/dR, dS/dlambda, dS/dmu)`
-/// for the element blocks `k` (built from the volume weights `w` and the Lame parameters).
+/// for the cell's element `set` (its blocks `set.k` at the current Lame parameters).
 pub fn cell_elastic_adjoint(
-    tables: &StiffnessTables,
-    w: &[f64; 8],
-    k: &[[Mat3<f64>; 8]; 8],
+    set: &ElementSet,
     r: &Mat3<f64>,
     lam: &[Vec3<f64>; 8],
     a: &[Vec3<f64>; 8],
     x: &[Vec3<f64>; 8],
     dt: f64,
 ) -> (Mat3<f64>, f64, f64) {
+    let k = &set.k;
     let rt = r.transpose();
     let lt: [Vec3<f64>; 8] = std::array::from_fn(|i| rt * lam[i]);
     let b: [Vec3<f64>; 8] = std::array::from_fn(|j| rt * a[j] + x[j] * dt);
@@ -147,21 +148,7 @@ pub fn cell_elastic_adjoint(
         }
         r_bar = r_bar + lam[i].outer(y) + a[i].outer(z);
     }
-    let (mut dl, mut dm) = (0.0, 0.0);
-    for c in 0..8 {
-        if w[c] == 0.0 {
-            continue;
-        }
-        let mut gl = Mat3::default();
-        let mut gb = Mat3::default();
-        for i in 0..8 {
-            let g = tables.grad[c][i];
-            gl = gl + lt[i].outer(g);
-            gb = gb + b[i].outer(g);
-        }
-        dl += w[c] * gl.trace() * gb.trace();
-        dm += w[c] * ((gl * gb).trace() + frobenius(&gl, &gb));
-    }
+    let (dl, dm) = set.lame_derivatives(&lt, &b);
     (r_bar, dl, dm)
 }
 

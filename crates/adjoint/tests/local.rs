@@ -4,8 +4,9 @@
 
 use adjoint::backward::{step_adjoint, step_lagrangian, PhysicalGradient};
 use adjoint::local::*;
+use cutfem::cutcell::{cell_integrals, CellIntegrals};
 use cutfem::fem::collision::{ContactScheme, Ground};
-use cutfem::fem::element::{corner_offsets, polar_rotation, StiffnessTables};
+use cutfem::fem::element::{corner_offsets, polar_rotation, Element, ElementSet};
 use cutfem::fem::{Aabb, Grid, Model, Simulation};
 use cutfem::shapes::Shape;
 use gpumat::{Mat3, Matrix, Vec3};
@@ -55,40 +56,50 @@ fn polar_adjoint_matches_central_differences() {
     }
 }
 
-fn random_cell(rng: &mut Rng) -> ([f64; 8], StiffnessTables) {
+/// A cut cell of size 0.1 with random corner values (at least one inside), or a full one.
+fn random_cell(rng: &mut Rng, full: bool) -> CellIntegrals {
     let h = 0.1;
-    let w: [f64; 8] = std::array::from_fn(|_| (0.5 + 0.5 * rng.next()) * h * h * h / 8.0);
-    (w, StiffnessTables::new(h))
+    if full {
+        return CellIntegrals::full(h);
+    }
+    let mut phi: [f64; 8] = std::array::from_fn(|_| (rng.next() - 0.3) * h);
+    phi[0] = -0.5 * h;
+    cell_integrals(&phi, h)
 }
 
-fn blocks(t: &StiffnessTables, w: &[f64; 8], lambda: f64, mu: f64) -> [[Mat3<f64>; 8]; 8] {
-    std::array::from_fn(|i| std::array::from_fn(|j| t.block(w, i, j, lambda, mu)))
-}
-
+/// The elastic term's derivatives for every element (the condensed incompatible modes
+/// included: `dK_c = P^T dK P`, module docs of `cutfem::fem::element`) on full and cut cells.
 #[test]
 fn cell_elastic_adjoint_matches_central_differences() {
     let mut rng = Rng(2);
-    for trial in 0..10 {
-        let (w, tables) = random_cell(&mut rng);
-        let (lambda, mu) = (1500.0, 800.0);
-        let k = blocks(&tables, &w, lambda, mu);
-        let r = polar_rotation(Mat3::identity() + rng.mat() * 0.5, 30);
-        let lam: [Vec3<f64>; 8] = std::array::from_fn(|_| rng.vec());
-        let a: [Vec3<f64>; 8] = std::array::from_fn(|_| rng.vec() * 0.05);
-        let x = corner_offsets(tables.h);
-        let dt = 0.01;
-        let (r_bar, dl, dm) = cell_elastic_adjoint(&tables, &w, &k, &r, &lam, &a, &x, dt);
-        let dir = rng.mat();
-        let fd = cd(1e-6, |t| cell_elastic_value(&k, &(r + dir * t), &lam, &a, &x, dt));
-        assert!(rel(frobenius(&r_bar, &dir), fd) < 1e-6, "trial {trial} R");
-        let fdl = cd(1e-3, |t| {
-            cell_elastic_value(&blocks(&tables, &w, lambda + t, mu), &r, &lam, &a, &x, dt)
-        });
-        let fdm = cd(1e-3, |t| {
-            cell_elastic_value(&blocks(&tables, &w, lambda, mu + t), &r, &lam, &a, &x, dt)
-        });
-        assert!(rel(dl, fdl) < 1e-6, "trial {trial} lambda: {dl} vs {fdl}");
-        assert!(rel(dm, fdm) < 1e-6, "trial {trial} mu: {dm} vs {fdm}");
+    let h = 0.1;
+    for element in Element::ALL {
+        for trial in 0..8 {
+            let ci = random_cell(&mut rng, trial == 0);
+            let (lambda, mu) = (1500.0, 800.0);
+            let set = |l: f64, m: f64| ElementSet::of_cell(&ci, h, element, l, m);
+            let here = set(lambda, mu);
+            let r = polar_rotation(Mat3::identity() + rng.mat() * 0.5, 30);
+            let lam: [Vec3<f64>; 8] = std::array::from_fn(|_| rng.vec());
+            let a: [Vec3<f64>; 8] = std::array::from_fn(|_| rng.vec() * 0.05);
+            let x = corner_offsets(h);
+            let dt = 0.01;
+            let (r_bar, dl, dm) = cell_elastic_adjoint(&here, &r, &lam, &a, &x, dt);
+            let dir = rng.mat();
+            let fd = cd(1e-6, |t| {
+                cell_elastic_value(&here.k, &(r + dir * t), &lam, &a, &x, dt)
+            });
+            let what = format!("{} trial {trial}", element.name());
+            assert!(rel(frobenius(&r_bar, &dir), fd) < 1e-6, "{what} R");
+            let fdl = cd(1e-2, |t| {
+                cell_elastic_value(&set(lambda + t, mu).k, &r, &lam, &a, &x, dt)
+            });
+            let fdm = cd(1e-2, |t| {
+                cell_elastic_value(&set(lambda, mu + t).k, &r, &lam, &a, &x, dt)
+            });
+            assert!(rel(dl, fdl) < 1e-6, "{what} lambda: {dl} vs {fdl}");
+            assert!(rel(dm, fdm) < 1e-6, "{what} mu: {dm} vs {fdm}");
+        }
     }
 }
 

@@ -134,7 +134,10 @@
 //! (so a `+inf` or NaN corner makes the interpolant positive almost everywhere in the
 //! tetrahedra touching it; every Kuhn tetrahedron touches corners 0 and 7).
 
+mod boxed;
 mod refine;
+
+pub use boxed::refined_boundary_in_box;
 
 pub use refine::{
     refined_cell_integrals, refined_cell_integrals_with, refined_sub_values, LIPSCHITZ_MAX, MAX_SUBDIVISIONS,
@@ -178,14 +181,28 @@ pub struct CellIntegrals {
     pub volume_fraction: f64,
     /// Surface area in the cell (sum of `boundary`), world units.
     pub area: f64,
+    /// The moments of the inside part on the unit cube, `int xi^a eta^b zeta^c` over the
+    /// inside part mapped to `[0, 1]^3` (dimensionless; world moments scale with `h^3`), at
+    /// index [`moment_index`]`(a, b, c)` for `a, b, c` in `0..=2`: exact to rounding (like
+    /// `volume`) for total degree `a + b + c <= 5`; the degree-6 moment `(2, 2, 2)` is not
+    /// computed (0) since no element integrand reaches it (`fem::element`, exact quadrature).
+    pub moments: [f64; 27],
+}
+
+/// The index of the moment `xi^a eta^b zeta^c` in [`CellIntegrals::moments`].
+pub const fn moment_index(a: usize, b: usize, c: usize) -> usize {
+    a + 3 * b + 9 * c
 }
 
 impl CellIntegrals {
     /// The integrals of a cell entirely inside: `volume[i] = h^3 / 8`, no surface.
     pub fn full(h: f64) -> Self {
+        let mut moments = [0.0; 27];
+        add_box_moments([0.0; 3], 1.0, &mut moments);
         CellIntegrals {
             volume: [h * h * h / 8.0; 8],
             volume_fraction: 1.0,
+            moments,
             ..Default::default()
         }
     }
@@ -235,6 +252,12 @@ pub fn cell_active(phi: &[f64; 8], h: f64) -> bool {
 /// # Panics
 /// If `h` is not positive and finite.
 pub fn cell_integrals(phi: &[f64; 8], h: f64) -> CellIntegrals {
+    cell_integrals_in(phi, h, None)
+}
+
+/// [`cell_integrals`] with the surface integrals restricted to the box `clip` (unit-cube
+/// coordinates) when set.
+fn cell_integrals_in(phi: &[f64; 8], h: f64, clip: Option<[P3; 2]>) -> CellIntegrals {
     assert!(
         h > 0.0 && h.is_finite(),
         "cell size h must be positive and finite, got {h}"
@@ -248,7 +271,10 @@ pub fn cell_integrals(phi: &[f64; 8], h: f64) -> CellIntegrals {
         return CellIntegrals::full(h);
     }
     // Integrate on the unit cube, then scale.
-    let mut acc = Accum::default();
+    let mut acc = Accum {
+        clip,
+        ..Default::default()
+    };
     let pos = std::array::from_fn(corner);
     for tet in &KUHN_TETS {
         clip_tet(tet, &p, &pos, &mut acc);
@@ -316,7 +342,7 @@ pub fn total_area(cells: &[Option<CellIntegrals>]) -> f64 {
 // ---------------------------------------------------------------------------------------------
 // Clipping and quadrature on the unit cube.
 
-type P3 = [f64; 3];
+pub(crate) type P3 = [f64; 3];
 
 /// Running sums on the unit cube.
 #[derive(Default)]
@@ -324,6 +350,10 @@ struct Accum {
     volume: [f64; 8],
     boundary: [f64; 8],
     normal: P3,
+    moments: [f64; 27],
+    /// when set, surface integrals only over the part inside this box (unit-cube
+    /// coordinates; [`boxed`])
+    clip: Option<[P3; 2]>,
 }
 
 impl Accum {
@@ -347,6 +377,7 @@ impl Accum {
             normal,
             volume_fraction,
             area,
+            moments: self.moments,
         }
     }
 }
@@ -382,9 +413,31 @@ fn basis(x: P3) -> [f64; 8] {
     std::array::from_fn(|i| w[0][i & 1] * w[1][(i >> 1) & 1] * w[2][(i >> 2) & 1])
 }
 
-/// Degree-3 tetrahedron rule: (barycentric weight of the distinguished vertex, of the others,
-/// quadrature weight relative to the volume). The distinguished vertex runs over all 4.
-const TET_RULE: [(f64, f64, f64); 2] = [(5.0 / 8.0, 1.0 / 8.0, 4.0 / 25.0), (0.0, 1.0 / 3.0, 9.0 / 100.0)];
+/// The positive 14-point degree-5 tetrahedron rule (Walkington 2000; Keast's rule 6): (barycentric
+/// weight of the distinguished vertex, of the others, quadrature weight relative to the volume).
+/// The first two classes run the distinguished vertex over all 4 corners; the third (two
+/// barycentric weights `a`, two `1/2 - a`) over the 6 pairs ([`TET_PAIRS`]). Exact for the
+/// trilinear `N_i` (degree 3) and for the moments of degree <= 5 (`tests::tet_rule_is_exact`).
+const TET_RULE: [(f64, f64, f64); 2] = [
+    (
+        0.721_794_249_067_326_4,
+        0.092_735_250_310_891_2,
+        0.073_493_043_116_361_9,
+    ),
+    (
+        0.067_342_242_210_098_2,
+        0.310_885_919_263_300_6,
+        0.112_687_925_718_015_9,
+    ),
+];
+/// The third class of [`TET_RULE`]: (the pair's barycentric weight, the others', weight).
+const TET_RULE_PAIRS: (f64, f64, f64) = (
+    0.454_496_295_874_350_4,
+    0.045_503_704_125_649_6,
+    0.042_546_020_777_081_5,
+);
+/// The 6 pairs of tetrahedron vertices.
+const TET_PAIRS: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
 
 /// Dunavant's degree-4 triangle rule: (weight of the distinguished vertex, of the other two,
 /// quadrature weight relative to the area). The distinguished vertex runs over all 3.
@@ -401,26 +454,75 @@ const TRI_RULE: [(f64, f64, f64); 2] = [
     ),
 ];
 
-/// Adds the integrals of the `N_i` over the tetrahedron `v` to `acc.volume`.
+/// Adds the integrals of the `N_i` and the moments over the tetrahedron `v` to `acc`.
 fn add_tet(v: [P3; 4], acc: &mut Accum) {
     let vol = dot(sub(v[1], v[0]), cross(sub(v[2], v[0]), sub(v[3], v[0]))).abs() / 6.0;
     if vol == 0.0 {
         return;
     }
+    let mut point = |bary: [f64; 4], w: f64| {
+        let x: P3 = std::array::from_fn(|k| (0..4).map(|j| bary[j] * v[j][k]).sum());
+        let n = basis(x);
+        for i in 0..8 {
+            acc.volume[i] += vol * w * n[i];
+        }
+        add_point_moments(x, vol * w, &mut acc.moments);
+    };
     for &(a, b, w) in &TET_RULE {
         for d in 0..4 {
-            let x: P3 = std::array::from_fn(|k| (0..4).map(|j| if j == d { a } else { b } * v[j][k]).sum());
-            let n = basis(x);
-            for i in 0..8 {
-                acc.volume[i] += vol * w * n[i];
+            point(std::array::from_fn(|j| if j == d { a } else { b }), w);
+        }
+    }
+    let (a, b, w) = TET_RULE_PAIRS;
+    for pair in &TET_PAIRS {
+        point(std::array::from_fn(|j| if pair.contains(&j) { a } else { b }), w);
+    }
+}
+
+/// Adds `w x^a y^b z^c` to the moments (all but the degree-6 one, see
+/// [`CellIntegrals::moments`]).
+fn add_point_moments(x: P3, w: f64, m: &mut [f64; 27]) {
+    let p = x.map(|t| [1.0, t, t * t]);
+    for c in 0..3 {
+        for b in 0..3 {
+            for a in 0..3 {
+                if a + b + c < 6 {
+                    m[moment_index(a, b, c)] += w * p[0][a] * p[1][b] * p[2][c];
+                }
             }
         }
     }
 }
 
-/// Adds the integrals of the `N_i` over the triangle `v` to `acc.boundary`, and its
-/// area-weighted unit normal `dir` (the direction of increasing phi) to `acc.normal`.
+/// Adds the moments of the box `[lo, lo + size]^3` in closed form (all but the degree-6 one).
+pub(crate) fn add_box_moments(lo: P3, size: f64, m: &mut [f64; 27]) {
+    // int_lo^{lo+size} t^a dt
+    let one = |l: f64, a: i32| ((l + size).powi(a + 1) - l.powi(a + 1)) / (a + 1) as f64;
+    let p: [[f64; 3]; 3] = std::array::from_fn(|k| std::array::from_fn(|a| one(lo[k], a as i32)));
+    for c in 0..3 {
+        for b in 0..3 {
+            for a in 0..3 {
+                if a + b + c < 6 {
+                    m[moment_index(a, b, c)] += p[0][a] * p[1][b] * p[2][c];
+                }
+            }
+        }
+    }
+}
+
+/// Adds the integrals of the `N_i` over the triangle `v` (its part inside `acc.clip`) to
+/// `acc.boundary`, and its area-weighted unit normal `dir` (the direction of increasing phi) to
+/// `acc.normal`.
 fn add_tri(v: [P3; 3], dir: P3, acc: &mut Accum) {
+    if let Some(b) = acc.clip {
+        boxed::clip_triangle(v, &b, |t| add_tri_whole(t, dir, acc));
+    } else {
+        add_tri_whole(v, dir, acc);
+    }
+}
+
+/// [`add_tri`] of the whole triangle.
+fn add_tri_whole(v: [P3; 3], dir: P3, acc: &mut Accum) {
     let area = norm(cross(sub(v[1], v[0]), sub(v[2], v[0]))) / 2.0;
     if area == 0.0 {
         return;

@@ -224,6 +224,10 @@ pub struct NumericsSection {
     /// or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
     pub preconditioner: PreconditionerName,
+    /// the grid element: "incompatible" (default), "trilinear" (the thesis'),
+    /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
+    #[serde(default)]
+    pub element: crate::fem::element::Element,
 }
 
 /// `[numerics].preconditioner`
@@ -276,6 +280,7 @@ impl Default for NumericsSection {
             cg_max_iterations: cg_max(),
             diffusion: DiffusionName::default(),
             preconditioner: PreconditionerName::default(),
+            element: crate::fem::element::Element::default(),
         }
     }
 }
@@ -463,6 +468,7 @@ impl Scene {
             dt: self.time.dt,
             theta: self.time.theta,
             nitsche_eta: self.numerics.nitsche_eta,
+            element: self.numerics.element,
             dirichlet: self
                 .dirichlet
                 .iter()

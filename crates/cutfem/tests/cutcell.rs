@@ -777,3 +777,39 @@ fn sphere_cell_normals_are_radial() {
         "worst normal deviation {worst:?} degrees"
     );
 }
+
+/// The moments of the inside part (`CellIntegrals::moments`, read by the exact element) are
+/// exact for planar cuts: a slab `x < 0.37 h` and the corner tetrahedron `x + y + z < h`
+/// (`int x^a y^b z^c = a! b! c! / (a + b + c + 3)!` on the unit tetrahedron), and the full cell.
+#[test]
+fn moments_are_exact_for_planar_cuts() {
+    use cutfem::cutcell::{moment_index, CellIntegrals};
+    let h = 0.2;
+    let fact = |n: usize| (1..=n).product::<usize>() as f64;
+    let slab = cell_integrals(&std::array::from_fn(|c| ((c & 1) as f64 - 0.37) * h), h);
+    let tet = cell_integrals(
+        &std::array::from_fn(|c| ((c & 1) + ((c >> 1) & 1) + ((c >> 2) & 1)) as f64 * h - h),
+        h,
+    );
+    let full = CellIntegrals::full(h);
+    for c in 0..3 {
+        for b in 0..3 {
+            for a in 0..3 {
+                if a + b + c > 5 {
+                    continue;
+                }
+                let k = moment_index(a, b, c);
+                let want_slab = 0.37f64.powi(a as i32 + 1) / (a + 1) as f64 / ((b + 1) * (c + 1)) as f64;
+                let want_tet = fact(a) * fact(b) * fact(c) / fact(a + b + c + 3);
+                let want_full = 1.0 / ((a + 1) * (b + 1) * (c + 1)) as f64;
+                assert!((slab.moments[k] - want_slab).abs() < 1e-14, "slab {a}{b}{c}");
+                assert!(
+                    (tet.moments[k] - want_tet).abs() < 1e-14,
+                    "tet {a}{b}{c}: {}",
+                    tet.moments[k]
+                );
+                assert!((full.moments[k] - want_full).abs() < 1e-15, "full {a}{b}{c}");
+            }
+        }
+    }
+}

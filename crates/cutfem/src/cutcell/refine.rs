@@ -2,7 +2,9 @@
 //! 4x4x4 node stencil, sampled on `s^3` sub-cells, each integrated exactly (see the module docs
 //! of [`crate::cutcell`], "Refinement").
 
-use super::{cell_corner_values, cell_integrals, snap, snap_value, Accum, CellIntegrals, P3};
+use super::{
+    add_box_moments, cell_corner_values, cell_integrals_in, snap, snap_value, Accum, CellIntegrals, P3,
+};
 use super::{clip_tet, KUHN_TETS};
 use crate::SdfGrid;
 
@@ -146,12 +148,21 @@ pub fn refined_cell_integrals(sdf: &SdfGrid, cell: [usize; 3]) -> CellIntegrals 
 /// If `s` is out of range, the cell is outside the grid or the spacing is not positive and
 /// finite.
 pub fn refined_cell_integrals_with(sdf: &SdfGrid, cell: [usize; 3], s: usize) -> CellIntegrals {
+    refined_in(sdf, cell, s, None)
+}
+
+/// [`refined_cell_integrals_with`] with the surface integrals restricted to the box `clip`
+/// (unit-cube coordinates of the cell) when set.
+pub(super) fn refined_in(sdf: &SdfGrid, cell: [usize; 3], s: usize, clip: Option<[P3; 2]>) -> CellIntegrals {
     let h = sdf.spacing;
     let phi = cell_corner_values(sdf, cell);
     let Some(v) = sub_values(sdf, cell, s) else {
-        return cell_integrals(&phi, h);
+        return cell_integrals_in(&phi, h, clip);
     };
-    let mut acc = Accum::default();
+    let mut acc = Accum {
+        clip,
+        ..Default::default()
+    };
     let size = 1.0 / s as f64;
     let at = |i: usize| i as f64 / s as f64;
     for iz in 0..s {
@@ -178,7 +189,7 @@ pub fn refined_cell_integrals_with(sdf: &SdfGrid, cell: [usize; 3], s: usize) ->
     }
     // A refined cut cell keeps an inside corner, so its volume is positive; guard anyway.
     if acc.volume.iter().sum::<f64>() <= 0.0 {
-        return cell_integrals(&phi, h);
+        return cell_integrals_in(&phi, h, clip);
     }
     acc.finish(h)
 }
@@ -288,4 +299,5 @@ fn add_box(lo: P3, size: f64, acc: &mut Accum) {
         }
         acc.volume[i] += prod;
     }
+    add_box_moments(lo, size, &mut acc.moments);
 }

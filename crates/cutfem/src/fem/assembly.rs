@@ -45,9 +45,10 @@ pub(crate) use cells::CellWork;
 pub(crate) use newmark::fill_newmark;
 pub(crate) use step::{StepCells, StepOutput, StepState};
 
-use super::element::{lanes3, padded_transpose, rotate_add, PaddedBlock, StiffnessTables, OPPOSITE};
+use super::element::{lanes3, padded_transpose, rotate_add, PaddedBlock, StiffnessTables};
 pub use super::element::{rotate_block, ElementBlocks};
 use super::grid::Grid;
+use super::sim::NitscheFace;
 use gpumat::simd::{dispatch, Kernel, Simd4};
 use gpumat::{Mat3, Matrix, SparseMatrix, SparsityPattern, Vec3};
 use rayon::prelude::*;
@@ -83,6 +84,8 @@ pub struct Material {
     pub mu: f64,
     /// Nitsche penalty eta
     pub eta: f64,
+    /// the grid element
+    pub element: super::element::Element,
 }
 
 /// The pattern, gather maps and tables, built once per grid.
@@ -100,7 +103,7 @@ pub struct Assembler {
     node_cells: Vec<(u32, u8)>,
     /// per entry of `node_cells`, `(cell e, corner i)` of node `r`: for each corner `j`, the
     /// place of block `(r, dofs[j])` among the row's blocks from the diagonal on, or
-    /// [`NO_BLOCK`] where that block lies below the diagonal or `i ^ j` = [`OPPOSITE`]
+    /// [`NO_BLOCK`] where that block lies below the diagonal
     upper: Vec<[u8; 8]>,
     /// the corner dofs of each cell (the cells' `dofs`, packed for the cell sweep)
     cell_dofs: Vec<[u32; 8]>,
@@ -151,21 +154,18 @@ impl Assembler {
                 mirror[kk] = pattern.find(c, r).expect("cell pairs give a symmetric pattern") as u32;
             }
         }
-        // The gather map of the row sweep. Opposite corners (`i ^ j = 7`) share no quadrature
-        // corner where both basis gradients are nonzero: their stiffness and Nitsche blocks
-        // are exactly zero and are left out (adding a zero block to a sum that starts at +0
-        // never changes it).
+        // The gather map of the row sweep.
         let upper = (0..n)
             .flat_map(|r| {
                 node_cells[node_ptr[r] as usize..node_ptr[r + 1] as usize]
                     .iter()
                     .map(move |&ec| (r, ec))
             })
-            .map(|(r, (e, i))| {
+            .map(|(r, (e, _))| {
                 let dofs = &grid.cells[e as usize].dofs;
                 std::array::from_fn(|j| {
                     let c = dofs[j] as usize;
-                    if c < r || j ^ i as usize == OPPOSITE {
+                    if c < r {
                         return NO_BLOCK;
                     }
                     let kk = pattern.find(r, c).expect("pattern holds every cell pair");
@@ -198,7 +198,7 @@ impl Assembler {
 
     /// The element blocks of `grid` for material `m`.
     pub fn element_blocks(&self, grid: &Grid, m: &Material) -> ElementBlocks {
-        ElementBlocks::new(&self.tables, grid, m.lambda, m.mu)
+        ElementBlocks::new(grid, m.element, m.lambda, m.mu)
     }
 
     /// Writes the stiffness values into `k` (whose pattern must be [`Assembler::pattern`]).
@@ -213,7 +213,7 @@ impl Assembler {
         m: &Material,
         blocks: &ElementBlocks,
         rotations: Option<&[Mat3<f64>]>,
-        dirichlet: &[bool],
+        dirichlet: &[Option<NitscheFace>],
         scale: Option<&[f64]>,
         k: &mut SparseMatrix<Mat3<f64>>,
     ) {
@@ -347,10 +347,12 @@ impl Assembler {
     /// The Nitsche terms of element block `(e, i, j)`, Young's modulus scaled by `se`.
     #[inline(always)]
     fn nitsche(&self, c: &Cells<'_>, e: usize, i: usize, j: usize, se: f64) -> Mat3<f64> {
-        let ci = &c.grid.cells[e].integrals;
-        let n = Vec3::from_array(ci.normal);
+        let Some(f) = &c.dirichlet[e] else {
+            return Mat3::default();
+        };
+        let n = Vec3::from_array(f.normal);
         self.tables
-            .nitsche_block(&ci.boundary, n, i, j, c.m.lambda * se, c.m.mu * se, c.m.eta)
+            .nitsche_block(&f.boundary, n, i, j, c.m.lambda * se, c.m.mu * se, c.m.eta)
     }
 
     /// The blocks of row `r` from the diagonal on without rotation: each the sum of its
@@ -378,7 +380,7 @@ impl Assembler {
                 if se != 1.0 {
                     b = b * se;
                 }
-                if c.dirichlet[e] {
+                if c.dirichlet[e].is_some() {
                     b = b + self.nitsche(c, e, i, j, se);
                 }
                 acc[o as usize] = acc[o as usize] + b;
@@ -408,7 +410,7 @@ impl Assembler {
             sink.cell(e, i);
             // the blocks as padded columns: the table the cell sweep reads too
             let (bs, rt) = (&c.blocks.cell_columns(e)[i], &rt[e - c.cell_base]);
-            if SCALE || c.dirichlet[e] {
+            if SCALE || c.dirichlet[e].is_some() {
                 // the rarer cells: scaled blocks, Nitsche terms
                 let se = if SCALE { scale[e] } else { 1.0 };
                 for (j, &o) in up.iter().enumerate() {
@@ -418,7 +420,7 @@ impl Assembler {
                         } else {
                             bs[j]
                         };
-                        let nitsche = c.dirichlet[e].then(|| self.nitsche(c, e, i, j, se));
+                        let nitsche = c.dirichlet[e].is_some().then(|| self.nitsche(c, e, i, j, se));
                         rotate_add(s, &mut acc[o as usize], rt, &b, nitsche.as_ref());
                     }
                 }
@@ -458,7 +460,7 @@ pub(crate) type StiffnessInputs<'a> = (
     &'a Material,
     &'a ElementBlocks,
     Option<&'a [Mat3<f64>]>,
-    &'a [bool],
+    &'a [Option<NitscheFace>],
     Option<&'a [f64]>,
 );
 
@@ -473,7 +475,7 @@ struct Cells<'a> {
     /// the first cell of `rotations` (a step's pass hands each unit of rows the finished
     /// rotations only, see [`pipeline`])
     cell_base: usize,
-    dirichlet: &'a [bool],
+    dirichlet: &'a [Option<NitscheFace>],
     scale: Option<&'a [f64]>,
 }
 

@@ -12,10 +12,14 @@
 //! `K_ij[p][q] = lambda a_p b_q + mu a_q b_p + mu (a . b) delta_pq` (eq. 4.4.5, the integrand of
 //! `B^T C B` split into 3x3 blocks); it is linear in `(lambda, mu)`.
 
-use super::grid::Grid;
 use gpumat::simd::Simd4;
 use gpumat::{Mat3, Vec3};
-use rayon::prelude::*;
+
+mod blocks;
+mod enhanced;
+
+pub use blocks::ElementBlocks;
+pub use enhanced::{gram, Element, ElementSet, Gram, MONOMIALS};
 
 /// `grad N_i` at corner `c` of a cell of size `h`.
 pub fn basis_gradient(i: usize, c: usize, h: f64) -> Vec3<f64> {
@@ -137,90 +141,6 @@ impl StiffnessTables {
             k = k + Mat3::from_scalar(eta * wb[i]);
         }
         k
-    }
-}
-
-/// The unrotated element blocks `K_ij(e)` for one material: one shared set for all full
-/// cells (their weights are all `h^3/8`) and one set per distinct weight vector of the cut
-/// cells (cells cut alike, e.g. along a flat face, share theirs: bit-identical weights give
-/// bit-identical blocks, and a smaller table is less memory traffic in every assembly).
-/// Rebuilt only when the material changes.
-#[derive(Clone, Debug)]
-pub struct ElementBlocks {
-    /// Lame lambda the blocks were built for
-    pub lambda: f64,
-    /// Lame mu the blocks were built for
-    pub mu: f64,
-    /// the block sets: the full cells' first, then one per distinct cut weight vector
-    sets: Vec<[[Mat3<f64>; 8]; 8]>,
-    /// per cell: its index into `sets` (0 for a full cell)
-    set_of: Vec<u32>,
-    /// the same blocks transposed and padded ([`padded_transpose`]): their columns as
-    /// vectors, for the cell sweep of a step (`assembly::cells`)
-    columns: Vec<[[PaddedBlock; 8]; 8]>,
-}
-
-impl ElementBlocks {
-    /// Builds the blocks of every cell of `grid` for `(lambda, mu)`.
-    pub fn new(tables: &StiffnessTables, grid: &Grid, lambda: f64, mu: f64) -> Self {
-        Self::build(tables, grid, lambda, mu, true)
-    }
-
-    /// [`ElementBlocks::new`], on the rayon pool when `parallel` (else on the calling thread
-    /// alone; the same values).
-    pub(crate) fn build(tables: &StiffnessTables, grid: &Grid, lambda: f64, mu: f64, parallel: bool) -> Self {
-        let full = [grid.h().powi(3) / 8.0; 8];
-        let block_set = |w: &[f64; 8]| -> [[Mat3<f64>; 8]; 8] {
-            std::array::from_fn(|i| std::array::from_fn(|j| tables.block(w, i, j, lambda, mu)))
-        };
-        // distinct cut weight vectors in order of first appearance (deterministic)
-        let mut set_of = vec![0u32; grid.cells.len()];
-        let mut seen: std::collections::HashMap<[u64; 8], u32> = std::collections::HashMap::new();
-        let mut weights: Vec<&[f64; 8]> = vec![&full];
-        for (e, c) in grid.cells.iter().enumerate() {
-            if !c.is_full() {
-                let v = &c.integrals.volume;
-                set_of[e] = *seen.entry(v.map(f64::to_bits)).or_insert_with(|| {
-                    weights.push(v);
-                    (weights.len() - 1) as u32
-                });
-            }
-        }
-        let sets: Vec<[[Mat3<f64>; 8]; 8]> = if parallel {
-            weights.par_iter().map(|w| block_set(w)).collect()
-        } else {
-            weights.iter().map(|w| block_set(w)).collect()
-        };
-        let columns = sets
-            .iter()
-            .map(|set| set.map(|row| row.map(|b| padded_transpose(&b))))
-            .collect();
-        Self {
-            lambda,
-            mu,
-            sets,
-            set_of,
-            columns,
-        }
-    }
-    /// Number of distinct cut-cell block sets stored.
-    pub fn cut_sets(&self) -> usize {
-        self.sets.len() - 1
-    }
-    /// `K_ij(e)`.
-    #[inline(always)]
-    pub fn get(&self, e: usize, i: usize, j: usize) -> Mat3<f64> {
-        self.cell(e)[i][j]
-    }
-    /// All 64 blocks of cell `e`.
-    #[inline(always)]
-    pub fn cell(&self, e: usize) -> &[[Mat3<f64>; 8]; 8] {
-        &self.sets[self.set_of[e] as usize]
-    }
-    /// All 64 blocks of cell `e`, transposed and padded (their columns as vectors).
-    #[inline(always)]
-    pub fn cell_columns(&self, e: usize) -> &[[PaddedBlock; 8]; 8] {
-        &self.columns[self.set_of[e] as usize]
     }
 }
 
@@ -454,10 +374,6 @@ pub fn lanes3<S: Simd4>(s: S, v: S::V) -> [f64; 3] {
     let a = s.to_array(v);
     [a[0], a[1], a[2]]
 }
-
-/// `i ^ j` of opposite corners of a cell. No corner has nonzero gradients of both `N_i` and
-/// `N_j`, so under the corner rule their stiffness and Nitsche blocks are exactly zero.
-pub const OPPOSITE: usize = 7;
 
 #[cfg(test)]
 mod tests {

@@ -14,5 +14,5 @@ pub use assembly::{Assembler, Material};
 pub use collision::Ground;
 pub use grid::{Cell, Grid};
 pub use model::{Aabb, ExternalForce, Model};
-pub use sim::{Simulation, StepInfo};
+pub use sim::{NitscheFace, Simulation, StepInfo};
 pub use solver::{LinearSolver, Preconditioner, SolveInfo, SolverSettings};

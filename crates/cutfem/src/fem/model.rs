@@ -138,6 +138,8 @@ pub struct Model {
     pub dirichlet: Vec<Aabb>,
     /// Nitsche penalty `eta` (thesis: 1e8)
     pub nitsche_eta: f64,
+    /// the grid element (`[numerics] element`)
+    pub element: super::element::Element,
     /// initial linear velocity
     pub initial_velocity: Vec3<f64>,
     /// initial angular velocity (about the center of mass)
@@ -166,6 +168,7 @@ impl Default for Model {
             corotation: true,
             dirichlet: Vec::new(),
             nitsche_eta: 1e8,
+            element: super::element::Element::default(),
             initial_velocity: Vec3::default(),
             initial_angular_velocity: Vec3::default(),
             stiffness_scale: None,

@@ -75,8 +75,8 @@ pub struct Simulation {
     pub assembler: Assembler,
     /// lumped mass per dof
     pub mass: Matrix<f64>,
-    /// cells with Nitsche terms
-    pub dirichlet: Vec<bool>,
+    /// per cell, the part of its surface held by the Dirichlet boxes (Nitsche terms), if any
+    pub dirichlet: Vec<Option<NitscheFace>>,
     /// surface crossings of grid edges
     pub crossings: Vec<Crossing>,
     /// displacement
@@ -219,6 +219,7 @@ impl Simulation {
             lambda,
             mu,
             eta: self.model.nitsche_eta,
+            element: self.model.element,
         }
     }
 
@@ -226,7 +227,7 @@ impl Simulation {
     fn blocks(&mut self) -> ElementBlocks {
         let m = self.material();
         match self.blocks.take() {
-            Some(b) if b.lambda == m.lambda && b.mu == m.mu => b,
+            Some(b) if b.is_for(m.element, m.lambda, m.mu) => b,
             _ => self.assembler.element_blocks(&self.grid, &m),
         }
     }
@@ -498,11 +499,11 @@ impl Simulation {
     /// [`Assembler::assemble_stiffness`], the same values), and kept until the next assembly.
     pub fn stiffness(&self) -> &SparseMatrix<Mat3<f64>> {
         self.k.get_or_compute(|| {
-            let (m, tables) = (self.material(), self.assembler.tables());
+            let m = self.material();
             let mut fresh = None;
             let blocks = match &self.blocks {
-                Some(b) if b.lambda == m.lambda && b.mu == m.mu => b,
-                _ => &*fresh.insert(ElementBlocks::build(tables, &self.grid, m.lambda, m.mu, false)),
+                Some(b) if b.is_for(m.element, m.lambda, m.mu) => b,
+                _ => &*fresh.insert(ElementBlocks::build(&self.grid, m.element, m.lambda, m.mu, false)),
             };
             let mut k = SparseMatrix::zeros(self.assembler.pattern().clone(), 1);
             let rotations = self.rotations.as_deref().filter(|_| self.model.corotation);
@@ -559,21 +560,49 @@ pub fn newmark_system(
     fill_newmark(model, mass, k, u, v, f, a, b);
 }
 
-/// Cells with Nitsche boundary terms: cut cells whose center lies in a Dirichlet box. Errors
-/// when a box holds no part of the body's surface.
-pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<bool>, Error> {
+/// The part of a cell's surface held by the Dirichlet boxes: its Nitsche weights `w_b(e, i)`
+/// (eq. 4.2.3 over the held part only) and mean outward normal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NitscheFace {
+    /// `int N_i` over the held surface in the cell, world units
+    pub boundary: [f64; 8],
+    /// the area-weighted mean unit outward normal of the held surface
+    pub normal: [f64; 3],
+}
+
+/// The held surface of every cell: the part of the body's surface inside a Dirichlet box
+/// (`[[dirichlet]]`: the material inside the box is held), clipped to the box exactly
+/// ([`crate::cutcell::refined_boundary_in_box`]), so the held region does not depend on the
+/// resolution. Overlapping boxes count their common surface once per box. Errors when a box
+/// holds no part of the body's surface.
+pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheFace>>, Error> {
     let h = grid.h();
-    let mut marks = vec![false; grid.cells.len()];
+    let mut faces: Vec<Option<NitscheFace>> = vec![None; grid.cells.len()];
     for (bi, bx) in model.dirichlet.iter().enumerate() {
         let mut any = false;
         for (e, c) in grid.cells.iter().enumerate() {
             if c.integrals.area <= 0.0 {
                 continue;
             }
-            let center = grid.cell_origin(c) + Vec3::splat(0.5 * h);
-            if bx.contains(center) {
-                marks[e] = true;
-                any = true;
+            let lo = grid.cell_origin(c).to_array();
+            if (0..3).any(|d| lo[d] > bx.max[d] || lo[d] + h < bx.min[d]) {
+                continue;
+            }
+            let part = crate::cutcell::refined_boundary_in_box(&grid.sdf, c.coord, bx.min, bx.max);
+            if part.area <= 0.0 {
+                continue;
+            }
+            any = true;
+            let f = faces[e].get_or_insert(NitscheFace {
+                boundary: [0.0; 8],
+                normal: [0.0; 3],
+            });
+            for i in 0..8 {
+                f.boundary[i] += part.boundary[i];
+            }
+            for d in 0..3 {
+                // area-weighted sum for now, normalized below
+                f.normal[d] += part.area * part.normal[d];
             }
         }
         if !any {
@@ -583,5 +612,11 @@ pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<bool>, Error> {
             )));
         }
     }
-    Ok(marks)
+    for f in faces.iter_mut().flatten() {
+        let len = f.normal.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if len > 0.0 {
+            f.normal = f.normal.map(|x| x / len);
+        }
+    }
+    Ok(faces)
 }

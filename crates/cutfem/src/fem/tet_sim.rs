@@ -140,7 +140,12 @@ impl TetSimulation {
 
     fn material(&self) -> Material {
         let (lambda, mu) = self.model.lame();
-        Material { lambda, mu, eta: 0.0 }
+        Material {
+            lambda,
+            mu,
+            eta: 0.0,
+            element: self.model.element,
+        }
     }
 
     /// Rotations, stiffness and forces for the current state into `self.k`, `self.f`.

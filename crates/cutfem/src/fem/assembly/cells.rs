@@ -16,7 +16,7 @@
 //! relative to the cell ([`corner_offsets`]). Without corotation `R = I` and `z_j = cu u_j`.
 
 use super::super::element::{
-    cell_rotations4, comb, corner_offsets, lanes3, padded_transpose, ElementBlocks, PaddedBlock, OPPOSITE,
+    cell_rotations4, comb, corner_offsets, lanes3, padded_transpose, ElementBlocks, PaddedBlock,
 };
 use super::super::grid::{Cell, Grid};
 use super::{Assembler, Material};
@@ -84,7 +84,7 @@ pub(super) struct CellSweep<'a> {
     pub(super) dt: f64,
     pub(super) iterations: usize,
     pub(super) blocks: &'a ElementBlocks,
-    pub(super) dirichlet: &'a [bool],
+    pub(super) dirichlet: &'a [Option<crate::fem::NitscheFace>],
     pub(super) scale: Option<&'a [f64]>,
 }
 
@@ -160,8 +160,8 @@ impl Kernel for Chunk<'_> {
                 let sc = w.scale.map_or(1.0, |sc| sc[e]);
                 let kc = w.blocks.cell_columns(e);
                 let mut c = cell_rhs(s, kc, &r4[l], &rt, &w.x, &u[l], (w.cu, w.dt), sc);
-                if w.dirichlet[e] {
-                    w.add_nitsche(e, &u[l], sc, &mut c);
+                if let Some(f) = &w.dirichlet[e] {
+                    w.add_nitsche(f, &u[l], sc, &mut c);
                 }
                 self.c[g + l] = c;
             }
@@ -174,9 +174,8 @@ impl CellSweep<'_> {
     /// scaled by `sc`, the penalty not; only corners on a common edge have any, see
     /// [`StiffnessTables::nitsche_block`](super::super::element::StiffnessTables::nitsche_block)).
     #[inline(never)]
-    fn add_nitsche(&self, e: usize, u: &[Vec3<f64>; 8], sc: f64, c: &mut [Vec3<f64>; 8]) {
-        let ci = &self.grid.cells[e].integrals;
-        let n = Vec3::from_array(ci.normal);
+    fn add_nitsche(&self, f: &crate::fem::NitscheFace, u: &[Vec3<f64>; 8], sc: f64, c: &mut [Vec3<f64>; 8]) {
+        let n = Vec3::from_array(f.normal);
         let (lambda, mu) = (self.m.lambda * sc, self.m.mu * sc);
         for (i, ci_out) in c.iter_mut().enumerate() {
             let mut acc = Vec3::default();
@@ -185,7 +184,7 @@ impl CellSweep<'_> {
                     let nb = self
                         .asm
                         .tables()
-                        .nitsche_block(&ci.boundary, n, i, j, lambda, mu, self.m.eta);
+                        .nitsche_block(&f.boundary, n, i, j, lambda, mu, self.m.eta);
                     acc = acc + nb * *uj;
                 }
             }
@@ -232,9 +231,7 @@ pub(super) fn cell_rhs<S: Simd4>(
     for i in 0..8 {
         let mut sum = s.splat(0.0);
         for j in 0..8 {
-            if i ^ j != OPPOSITE {
-                sum = s.add(sum, comb(s, &z[j], &load3(&kc[i][j])));
-            }
+            sum = s.add(sum, comb(s, &z[j], &load3(&kc[i][j])));
         }
         let rs = lanes3(s, comb(s, &lanes3(s, sum), &rtv));
         c[i] = Vec3::new(rs[0] * sc, rs[1] * sc, rs[2] * sc);
@@ -279,10 +276,8 @@ mod tests {
         for i in 0..8 {
             let mut sum = Vec3::default();
             for j in 0..8 {
-                if i ^ j != OPPOSITE {
-                    let z = (r.transpose() * u[j]) * cu - (r.transpose() * x[j] - x[j]) * dt;
-                    sum = sum + k[i][j] * z;
-                }
+                let z = (r.transpose() * u[j]) * cu - (r.transpose() * x[j] - x[j]) * dt;
+                sum = sum + k[i][j] * z;
             }
             assert_eq!(
                 got[i].to_array().map(f64::to_bits),

@@ -58,7 +58,7 @@ pub(crate) struct StepCells<'a> {
     pub m: &'a Material,
     pub blocks: &'a ElementBlocks,
     pub iterations: usize,
-    pub dirichlet: &'a [bool],
+    pub dirichlet: &'a [Option<crate::fem::NitscheFace>],
     pub scale: Option<&'a [f64]>,
 }
 
@@ -340,6 +340,7 @@ mod tests {
                 lambda,
                 mu,
                 eta: s.model.nitsche_eta,
+                element: s.model.element,
             };
             let scale = s.model.stiffness_scale.as_deref();
             let mut k = SparseMatrix::zeros(s.assembler.pattern().clone(), 1);
