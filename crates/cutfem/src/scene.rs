@@ -224,7 +224,7 @@ pub struct NumericsSection {
     /// or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
     pub preconditioner: PreconditionerName,
-    /// the grid element: "incompatible" (default), "trilinear" (the thesis'),
+    /// the grid element: "trilinear" (the thesis', default), "incompatible",
     /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
     #[serde(default)]
     pub element: crate::fem::element::Element,

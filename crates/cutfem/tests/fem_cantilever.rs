@@ -2,7 +2,7 @@
 //! 2 x 0.2 x 0.2 (E = 1e5, nu = 0.3), its end face x = 0 held by Nitsche's method, against
 //! Timoshenko's `q L^4 / (8 E I) + q L^2 / (2 kappa G A)` (Euler-Bernoulli plus the shear
 //! correction, Cowper's `kappa = 10 (1 + nu) / (12 + 11 nu)` for a square section: +1.0%).
-//! The default element (incompatible modes, exact integration) is within 3% at h = 0.05 (4
+//! The incompatible element (incompatible modes, exact integration) is within 3% at h = 0.05 (4
 //! cells through the thickness) and 1% at h = 0.025; the thesis' trilinear element with the
 //! corner rule locks (more than 10% too stiff at h = 0.05). `examples/element_split.rs` gives
 //! the full table (every element, cut faces, nu = 0.49).

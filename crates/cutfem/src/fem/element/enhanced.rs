@@ -74,15 +74,16 @@ use gpumat::{Mat3, Vec3};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Element {
-    /// the thesis' element: trilinear, corner rule (sec. 4.4.1.1)
+    /// the thesis' element: trilinear, corner rule (sec. 4.4.1.1); the default until the
+    /// diagnosis is validated with the incompatible element (`docs/simulation.md`, "Element")
+    #[default]
     Trilinear,
     /// trilinear, exact integration over the cut part
     TrilinearExact,
     /// trilinear with incompatible modes, corner rule
     IncompatibleCorner,
-    /// trilinear with incompatible modes, exact integration (the default: see
+    /// trilinear with incompatible modes, exact integration (the most accurate: see
     /// `docs/simulation.md`, "Element")
-    #[default]
     Incompatible,
 }
 
@@ -391,7 +392,8 @@ fn semidefinite_cholesky(a: &[[f64; 9]; 9]) -> ([[f64; 9]; 9], [bool; 9]) {
     let mut keep = [false; 9];
     for j in 0..9 {
         let d = a[j][j] - (0..j).map(|t| l[j][t] * l[j][t]).sum::<f64>();
-        if !(d > PIVOT_REL * scale) {
+        // (NaN pivots are dropped too)
+        if d.partial_cmp(&(PIVOT_REL * scale)) != Some(std::cmp::Ordering::Greater) {
             continue;
         }
         keep[j] = true;
