@@ -39,7 +39,9 @@ fn scene(body: &str, young: f64, physics: &str, effects: &[&str], dt: f64, steps
 }
 
 const TORUS: &str = "[body]\nshape = { kind = \"torus\", center = [0.0, 1.0, 0.0], axis = [0.0, 0.0, 1.0], major = 0.5, minor = 0.2 }\nresolution = 8\n";
-const HOLD_LEFT: &str = "[[dirichlet]]\nmin = [-0.8, 0.8, -0.3]\nmax = [-0.5, 1.2, 0.3]\n";
+/// Holds the left end of the torus: the surface of the two columns of cells (h = 1/8) left of
+/// x = -0.5, between y = 0.75 and 1.25 (the box is clipped to the surface exactly).
+const HOLD_LEFT: &str = "[[dirichlet]]\nmin = [-0.8, 0.75, -0.3]\nmax = [-0.5, 1.25, 0.3]\n";
 
 /// The Stanford bunny scan (`bunny_res3.obj`, 0.155 x 0.151 x 0.120, open at the base) at 80
 /// cells per unit (12 cells across).

@@ -7,45 +7,17 @@
 
 use cutfem::fem::element::Element;
 use cutfem::fem::{Aabb, Grid, Model, Simulation};
-use cutfem::SdfGrid;
+use cutfem::shapes::Shape;
 use gpumat::Vec3;
 
 const L: f64 = 2.0;
 const T: f64 = 0.2;
 const E: f64 = 1.0e5;
 
-fn box_sdf(center: [f64; 3], size: [f64; 3], p: [f64; 3]) -> f64 {
-    let q: [f64; 3] = std::array::from_fn(|d| (p[d] - center[d]).abs() - 0.5 * size[d]);
-    let outside = q.iter().map(|v| v.max(0.0).powi(2)).sum::<f64>().sqrt();
-    outside + q[0].max(q[1]).max(q[2]).min(0.0)
-}
-
+/// The beam (a [`Shape::Box`]) on a grid of spacing `h`, nodes on multiples of `h`.
 fn grid(center: [f64; 3], size: [f64; 3], h: f64) -> Grid {
-    let pad = 2i64;
-    let start: [i64; 3] = std::array::from_fn(|d| ((center[d] - 0.5 * size[d]) / h).floor() as i64 - pad);
-    let end: [i64; 3] = std::array::from_fn(|d| ((center[d] + 0.5 * size[d]) / h).ceil() as i64 + pad);
-    let dims: [usize; 3] = std::array::from_fn(|d| (end[d] - start[d] + 1) as usize);
-    let origin: [f64; 3] = std::array::from_fn(|d| start[d] as f64 * h);
-    let mut values = Vec::new();
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                let p = [
-                    origin[0] + h * i as f64,
-                    origin[1] + h * j as f64,
-                    origin[2] + h * k as f64,
-                ];
-                values.push(box_sdf(center, size, p));
-            }
-        }
-    }
-    Grid::new(SdfGrid {
-        origin,
-        spacing: h,
-        dims,
-        values,
-    })
-    .expect("grid")
+    let sdf = Shape::Box { center, size }.to_sdf(1.0 / h, 2).expect("box sdf");
+    Grid::new(sdf).expect("grid")
 }
 
 /// Tip deflection relative to Euler-Bernoulli of the free length: the material in

@@ -135,9 +135,12 @@
 //! tetrahedra touching it; every Kuhn tetrahedron touches corners 0 and 7).
 
 mod boxed;
+mod quadrature;
 mod refine;
 
 pub use boxed::refined_boundary_in_box;
+pub(crate) use quadrature::add_box_moments;
+use quadrature::{add_tet, TRI_RULE};
 
 pub use refine::{
     refined_cell_integrals, refined_cell_integrals_with, refined_sub_values, LIPSCHITZ_MAX, MAX_SUBDIVISIONS,
@@ -411,103 +414,6 @@ fn norm(a: P3) -> f64 {
 fn basis(x: P3) -> [f64; 8] {
     let w = x.map(|t| [1.0 - t, t]);
     std::array::from_fn(|i| w[0][i & 1] * w[1][(i >> 1) & 1] * w[2][(i >> 2) & 1])
-}
-
-/// The positive 14-point degree-5 tetrahedron rule (Walkington 2000; Keast's rule 6): (barycentric
-/// weight of the distinguished vertex, of the others, quadrature weight relative to the volume).
-/// The first two classes run the distinguished vertex over all 4 corners; the third (two
-/// barycentric weights `a`, two `1/2 - a`) over the 6 pairs ([`TET_PAIRS`]). Exact for the
-/// trilinear `N_i` (degree 3) and for the moments of degree <= 5 (`tests::tet_rule_is_exact`).
-const TET_RULE: [(f64, f64, f64); 2] = [
-    (
-        0.721_794_249_067_326_4,
-        0.092_735_250_310_891_2,
-        0.073_493_043_116_361_9,
-    ),
-    (
-        0.067_342_242_210_098_2,
-        0.310_885_919_263_300_6,
-        0.112_687_925_718_015_9,
-    ),
-];
-/// The third class of [`TET_RULE`]: (the pair's barycentric weight, the others', weight).
-const TET_RULE_PAIRS: (f64, f64, f64) = (
-    0.454_496_295_874_350_4,
-    0.045_503_704_125_649_6,
-    0.042_546_020_777_081_5,
-);
-/// The 6 pairs of tetrahedron vertices.
-const TET_PAIRS: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
-
-/// Dunavant's degree-4 triangle rule: (weight of the distinguished vertex, of the other two,
-/// quadrature weight relative to the area). The distinguished vertex runs over all 3.
-const TRI_RULE: [(f64, f64, f64); 2] = [
-    (
-        0.108_103_018_168_070_23,
-        0.445_948_490_915_964_9,
-        0.223_381_589_678_011_47,
-    ),
-    (
-        0.816_847_572_980_458_5,
-        0.091_576_213_509_770_74,
-        0.109_951_743_655_321_87,
-    ),
-];
-
-/// Adds the integrals of the `N_i` and the moments over the tetrahedron `v` to `acc`.
-fn add_tet(v: [P3; 4], acc: &mut Accum) {
-    let vol = dot(sub(v[1], v[0]), cross(sub(v[2], v[0]), sub(v[3], v[0]))).abs() / 6.0;
-    if vol == 0.0 {
-        return;
-    }
-    let mut point = |bary: [f64; 4], w: f64| {
-        let x: P3 = std::array::from_fn(|k| (0..4).map(|j| bary[j] * v[j][k]).sum());
-        let n = basis(x);
-        for i in 0..8 {
-            acc.volume[i] += vol * w * n[i];
-        }
-        add_point_moments(x, vol * w, &mut acc.moments);
-    };
-    for &(a, b, w) in &TET_RULE {
-        for d in 0..4 {
-            point(std::array::from_fn(|j| if j == d { a } else { b }), w);
-        }
-    }
-    let (a, b, w) = TET_RULE_PAIRS;
-    for pair in &TET_PAIRS {
-        point(std::array::from_fn(|j| if pair.contains(&j) { a } else { b }), w);
-    }
-}
-
-/// Adds `w x^a y^b z^c` to the moments (all but the degree-6 one, see
-/// [`CellIntegrals::moments`]).
-fn add_point_moments(x: P3, w: f64, m: &mut [f64; 27]) {
-    let p = x.map(|t| [1.0, t, t * t]);
-    for c in 0..3 {
-        for b in 0..3 {
-            for a in 0..3 {
-                if a + b + c < 6 {
-                    m[moment_index(a, b, c)] += w * p[0][a] * p[1][b] * p[2][c];
-                }
-            }
-        }
-    }
-}
-
-/// Adds the moments of the box `[lo, lo + size]^3` in closed form (all but the degree-6 one).
-pub(crate) fn add_box_moments(lo: P3, size: f64, m: &mut [f64; 27]) {
-    // int_lo^{lo+size} t^a dt
-    let one = |l: f64, a: i32| ((l + size).powi(a + 1) - l.powi(a + 1)) / (a + 1) as f64;
-    let p: [[f64; 3]; 3] = std::array::from_fn(|k| std::array::from_fn(|a| one(lo[k], a as i32)));
-    for c in 0..3 {
-        for b in 0..3 {
-            for a in 0..3 {
-                if a + b + c < 6 {
-                    m[moment_index(a, b, c)] += p[0][a] * p[1][b] * p[2][c];
-                }
-            }
-        }
-    }
 }
 
 /// Adds the integrals of the `N_i` over the triangle `v` (its part inside `acc.clip`) to

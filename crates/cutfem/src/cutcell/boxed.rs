@@ -1,5 +1,5 @@
 //! Surface integrals restricted to an axis-aligned box: the part of a cell's surface that a
-//! Dirichlet box holds (`fem::sim::dirichlet_cells`). The surface triangles of the cell
+//! Dirichlet box holds ([`crate::fem::sim::dirichlet_cells`]). The surface triangles of the cell
 //! integration are clipped against the box's six planes (Sutherland-Hodgman; a triangle
 //! clipped by a convex box is a convex polygon, integrated as a fan of triangles with the same
 //! degree-4 rule), so the weights `w_b` and the mean normal are those of exactly the surface

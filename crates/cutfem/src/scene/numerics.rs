@@ -1,0 +1,85 @@
+//! `[numerics]` (an extension section of the scene): solver and discretization constants.
+
+use serde::Deserialize;
+
+/// `[numerics]` (extension): solver and discretization constants.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct NumericsSection {
+    /// Nitsche penalty eta
+    #[serde(default = "eta")]
+    pub nitsche_eta: f64,
+    /// relative CG tolerance
+    #[serde(default = "cg_tol")]
+    pub cg_tolerance: f64,
+    /// CG iteration limit
+    #[serde(default = "cg_max")]
+    pub cg_max_iterations: usize,
+    /// extension of the displacements into empty nodes before advection: "harmonic" (the
+    /// thesis' Poisson diffusion) or "linear" (reproduces linear fields exactly)
+    #[serde(default)]
+    pub diffusion: DiffusionName,
+    /// CG preconditioner of the step's linear solve: "block_jacobi" (the thesis'), "block_ic0"
+    /// or "rest_cholesky" ([`crate::fem::solver`])
+    #[serde(default)]
+    pub preconditioner: PreconditionerName,
+    /// the grid element: "trilinear" (the thesis', default), "incompatible",
+    /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
+    #[serde(default)]
+    pub element: crate::fem::element::Element,
+}
+
+/// `[numerics].preconditioner`
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum PreconditionerName {
+    /// inverse 3x3 diagonal blocks (the thesis')
+    #[default]
+    BlockJacobi,
+    /// relaxed modified block incomplete Cholesky on the matrix's pattern, every step
+    BlockIc0,
+    /// sparse Cholesky factor of the rest state, reused while it works
+    RestCholesky,
+}
+
+impl From<PreconditionerName> for crate::fem::Preconditioner {
+    fn from(p: PreconditionerName) -> Self {
+        match p {
+            PreconditionerName::BlockJacobi => Self::BlockJacobi,
+            PreconditionerName::BlockIc0 => Self::BlockIc0,
+            PreconditionerName::RestCholesky => Self::RestCholesky,
+        }
+    }
+}
+
+/// `[numerics].diffusion`
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum DiffusionName {
+    /// the thesis' 7-point Poisson diffusion
+    #[default]
+    Harmonic,
+    /// second-difference minimization, exact for linear fields
+    Linear,
+}
+fn eta() -> f64 {
+    1e8
+}
+fn cg_tol() -> f64 {
+    1e-8
+}
+fn cg_max() -> usize {
+    2000
+}
+impl Default for NumericsSection {
+    fn default() -> Self {
+        Self {
+            nitsche_eta: eta(),
+            cg_tolerance: cg_tol(),
+            cg_max_iterations: cg_max(),
+            diffusion: DiffusionName::default(),
+            preconditioner: PreconditionerName::default(),
+            element: crate::fem::element::Element::default(),
+        }
+    }
+}
