@@ -49,9 +49,18 @@ pub fn scene_simulation(scene: &Scene) -> Result<Simulation, String> {
     let grid = Grid::new(sdf).map_err(|e| e.to_string())?;
     let model = scene_model(scene, &grid)?;
     let mut sim = Simulation::new(grid, model).map_err(|e| e.to_string())?;
-    sim.solver.cg.tolerance = scene.numerics.cg_tolerance;
-    sim.solver.cg.max_iterations = scene.numerics.cg_max_iterations;
+    sim.solver = solver_settings(scene, sim.solver);
     Ok(sim)
+}
+
+/// `settings` with the scene's `[numerics]` solver keys (CG tolerance and iteration limit,
+/// preconditioner): every command solves a scene's steps the same way.
+pub fn solver_settings(scene: &Scene, settings: cutfem::fem::SolverSettings) -> cutfem::fem::SolverSettings {
+    let mut s = settings;
+    s.cg.tolerance = scene.numerics.cg_tolerance;
+    s.cg.max_iterations = scene.numerics.cg_max_iterations;
+    s.preconditioner = scene.numerics.preconditioner.into();
+    s
 }
 
 /// Which point-to-surface residual a fit uses.

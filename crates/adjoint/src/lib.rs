@@ -21,6 +21,7 @@
 //!   tolerant of diverging evaluations;
 //! * [`observe`] and [`observations`]: virtual RGB-D cameras and the observation CSV;
 //! * [`fit`]: a scene's reconstruction problem, the optimizer objective, `gradcheck`;
+//! * [`refine`]: the discretisation share of the error (the same state at `r/2`, `r`, `2r`);
 //! * [`diagnosis`]: the effects as first-class parts of the model; where a fitted model fails
 //!   and which effect is missing (score tests, short refits, BIC).
 
@@ -35,4 +36,5 @@ pub mod observe;
 pub mod optim;
 pub mod params;
 pub mod problem;
+pub mod refine;
 pub mod tangent;

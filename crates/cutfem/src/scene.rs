@@ -438,8 +438,36 @@ impl Scene {
     /// Loads or builds the reference SDF of the body (world units, negative inside), padded so
     /// that the body does not touch the grid border.
     pub fn body_sdf(&self) -> Result<crate::SdfGrid, Error> {
+        self.body_sdf_at(None)
+    }
+
+    /// The body's resolution in grid cells per world unit: `[body].resolution` (default
+    /// [`DEFAULT_RESOLUTION`]) for a mesh or shape, `1 / spacing` for an SDF file.
+    pub fn resolution(&self) -> Result<f64, Error> {
+        Ok(match &self.body.sdf {
+            Some(_) => 1.0 / self.body_sdf()?.spacing,
+            None => self.body.resolution.unwrap_or(DEFAULT_RESOLUTION),
+        })
+    }
+
+    /// [`Scene::body_sdf`] at `resolution` cells per unit instead of the scene's (`None`: the
+    /// scene's). A mesh or shape is sampled at that resolution; an SDF file, which carries its
+    /// own, is resampled from its trilinear interpolant (the same body, a finer or coarser
+    /// simulation grid), nodes on multiples of the new spacing.
+    pub fn body_sdf_at(&self, resolution: Option<f64>) -> Result<crate::SdfGrid, Error> {
         let b = &self.body;
-        let resolution = b.resolution.unwrap_or(DEFAULT_RESOLUTION);
+        if let (Some(r), Some(_)) = (resolution, &b.sdf) {
+            let own = Scene {
+                body: BodySection {
+                    resolution: None,
+                    ..b.clone()
+                },
+                ..self.clone()
+            }
+            .body_sdf()?;
+            return resample(&own, r).map_err(|e| Error::format(&self.path, e));
+        }
+        let resolution = resolution.or(b.resolution).unwrap_or(DEFAULT_RESOLUTION);
         let sdf = if let Some(p) = &b.sdf {
             let path = self.resolve(p);
             let ext = path
@@ -538,4 +566,22 @@ pub fn pad(g: &crate::SdfGrid, cells: usize) -> Result<crate::SdfGrid, String> {
         dims,
         values,
     })
+}
+
+/// `g` resampled at `resolution` cells per unit from its trilinear interpolant, over the box of
+/// its inside nodes plus [`PADDING_CELLS`] cells (nodes on multiples of the new spacing).
+fn resample(g: &crate::SdfGrid, resolution: f64) -> Result<crate::SdfGrid, String> {
+    let (lo, hi) = g
+        .bounding_box_of_inside()
+        .ok_or_else(|| "body.sdf: the SDF has no inside node".to_string())?;
+    // one old cell of margin: the interpolant's zero level lies within a cell of an inside node
+    let pad = g.spacing;
+    let lo = lo.map(|x| x - pad);
+    let hi = hi.map(|x| x + pad);
+    let (origin, dims) =
+        crate::SdfGrid::covering_grid(lo, hi, resolution, PADDING_CELLS).map_err(|e| e.to_string())?;
+    let far = g.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    Ok(crate::SdfGrid::from_fn(origin, 1.0 / resolution, dims, |p| {
+        g.sample(p).unwrap_or(far)
+    }))
 }

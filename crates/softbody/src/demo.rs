@@ -137,6 +137,7 @@ pub fn run(a: Args) -> Result<(), String> {
         out: &out,
         quiet: a.json,
         command: "demo: diagnose",
+        refine_check: false,
     })?;
     if !a.json {
         print_text(&d);

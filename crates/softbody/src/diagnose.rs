@@ -34,6 +34,10 @@ pub struct Args {
     /// Candidates confirmed by a short refit.
     #[arg(long, default_value_t = 3)]
     pub refits: usize,
+    /// Skip the discretisation check (the fitted model again at twice and half the
+    /// resolution, `adjoint::refine`).
+    #[arg(long)]
+    pub no_refine_check: bool,
     /// Print exactly one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -61,6 +65,8 @@ pub struct Job<'a> {
     pub quiet: bool,
     /// history entry's command
     pub command: &'a str,
+    /// estimate the discretisation share of the rms (`adjoint::refine`)
+    pub refine_check: bool,
 }
 
 /// Runs a diagnosis, writes its report and history entry; returns it and its JSON.
@@ -112,7 +118,26 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
         history: &entries,
     };
     let pictures = crate::diagnose_report::write_pictures(job.out, &d, &inputs)?;
-    let summary = summary_json(&d, &pictures, &hist_path, t0.elapsed().as_secs_f64());
+    let discretisation = if job.refine_check {
+        let params = adjoint::refine::RefineParams {
+            frames: Some(job.observations.frame_numbers()),
+            ..Default::default()
+        };
+        Some(crate::refine_check::run(
+            job.scene,
+            &sim.grid,
+            &d.model,
+            &params,
+            Some(d.noise_floor),
+            job.quiet,
+        ))
+    } else {
+        None
+    };
+    let mut summary = summary_json(&d, &pictures, &hist_path, t0.elapsed().as_secs_f64());
+    if let Some(v) = discretisation {
+        summary["discretisation"] = v;
+    }
     let path = job.out.join("diagnosis.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
         .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -217,6 +242,7 @@ pub fn run(args: Args) -> Result<(), String> {
         out: &out,
         quiet: args.json,
         command: "diagnose",
+        refine_check: !args.no_refine_check,
     })?;
     if args.json {
         println!("{summary}");

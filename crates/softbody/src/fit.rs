@@ -40,6 +40,10 @@ pub struct Args {
     /// Huber loss threshold (world units) against outliers (default: squared distances).
     #[arg(long)]
     pub huber: Option<f64>,
+    /// Skip the discretisation check (the fitted model again at twice and half the
+    /// resolution, `adjoint::refine`).
+    #[arg(long)]
+    pub no_refine_check: bool,
     /// Print exactly one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -286,6 +290,17 @@ pub fn run(args: Args) -> Result<(), String> {
             .zip(u.std_errors.iter().copied())
             .collect()
     });
+    // the discretisation share of the final rms, against the observations' noise floor
+    let discretisation = (!args.no_refine_check).then(|| {
+        let grid = &objective.problem.sim.grid;
+        let noise = adjoint::diagnosis::residuals::noise_floor(&obs, &[], &eyes, 2.0 * grid.h());
+        let params = adjoint::refine::RefineParams {
+            steps: Some(objective.problem.steps),
+            frames: Some(obs.frame_numbers()),
+            ..Default::default()
+        };
+        crate::refine_check::run(&scene, grid, &model, &params, Some(noise), args.json)
+    });
     let mut files = crate::fit_report::write(&out, &history, &initial_values, &ev_initial, &ev_final)?;
     if let (Some(u), 2) = (&unc, x_best.len()) {
         let path = out.join("uncertainty.png");
@@ -307,6 +322,7 @@ pub fn run(args: Args) -> Result<(), String> {
         "converged": info.termination.is_converged(),
         "per_frame": {"initial": per_frame_json(&ev_initial), "final": per_frame_json(&ev_final)},
         "history": history,
+        "discretisation": discretisation,
         "seconds": t0.elapsed().as_secs_f64(),
         "out": out,
         "files": files,

@@ -14,6 +14,7 @@ mod observe;
 mod plot;
 mod problem_args;
 mod progress;
+mod refine_check;
 mod simulate;
 
 use clap::{Parser, Subcommand};

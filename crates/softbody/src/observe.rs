@@ -178,8 +178,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let model =
         adjoint::fit::scene_model(&scene, &grid).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    sim.solver.cg.tolerance = scene.numerics.cg_tolerance;
-    sim.solver.cg.max_iterations = scene.numerics.cg_max_iterations;
+    sim.solver = adjoint::fit::solver_settings(&scene, sim.solver);
     let surface = extract_surface(&sim.grid.sdf);
     let (lo, hi) = surface
         .mesh

@@ -30,6 +30,10 @@ pub struct Args {
     /// Number of frames shown in the picture.
     #[arg(long, default_value_t = 4)]
     pub picture_frames: usize,
+    /// Also run the scene at twice and half its resolution and report how far the surface
+    /// moves differently (the discretisation error of the run, `adjoint::refine`).
+    #[arg(long)]
+    pub refine_check: bool,
 }
 
 /// The default output folder of a scene.
@@ -99,9 +103,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let model =
         adjoint::fit::scene_model(&scene, &grid).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    sim.solver.cg.tolerance = scene.numerics.cg_tolerance;
-    sim.solver.cg.max_iterations = scene.numerics.cg_max_iterations;
-    sim.solver.preconditioner = scene.numerics.preconditioner.into();
+    sim.solver = adjoint::fit::solver_settings(&scene, sim.solver);
     let surface = extract_surface(&sim.grid.sdf);
     let extension = match scene.numerics.diffusion {
         DiffusionName::Harmonic => Extension::Harmonic,
@@ -192,8 +194,15 @@ pub fn run(a: Args) -> Result<(), String> {
         });
     }
 
+    let refine = a.refine_check.then(|| {
+        let params = adjoint::refine::RefineParams {
+            steps: Some(steps),
+            ..Default::default()
+        };
+        crate::refine_check::run(&scene, &sim.grid, &sim.model, &params, None, a.json)
+    });
     let g = &sim.grid;
-    let summary = json!({
+    let mut summary = json!({
         "scene": a.scene.display().to_string(),
         "out": out.display().to_string(),
         "nodes": {"active": g.dofs(), "free": g.dofs(), "empty": band.empty_count(), "grid": g.sdf.values.len()},
@@ -217,6 +226,9 @@ pub fn run(a: Args) -> Result<(), String> {
             "advected": advected_files
         },
     });
+    if let Some(r) = refine {
+        summary["refine_check"] = r;
+    }
     std::fs::write(
         out.join("summary.json"),
         serde_json::to_string_pretty(&summary).expect("json"),

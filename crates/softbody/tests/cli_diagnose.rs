@@ -62,6 +62,10 @@ fn diagnose_finds_missing_gravity() {
     // interface.md fields
     assert!(v["rms"].as_f64().unwrap() > 0.0);
     assert!(v["noise_floor"].as_f64().unwrap() >= 0.0);
+    // the discretisation share of the rms (the fitted model at twice and half the resolution)
+    let d = &v["discretisation"];
+    assert!(d["estimate"].as_f64().unwrap() >= 0.0, "{d}");
+    assert_eq!(d["noise_floor"], v["noise_floor"]);
     let per_frame = v["per_frame"].as_array().unwrap();
     assert_eq!(per_frame.len(), 8);
     assert!(per_frame.iter().all(|f| f["frame"].is_u64() && f["rms"].is_f64()));

@@ -80,6 +80,11 @@ fn fit_recovers_the_truth_and_resumes() {
     assert!(j["cost"]["final"].as_f64().unwrap() < j["cost"]["initial"].as_f64().unwrap());
     let history = j["history"].as_array().unwrap();
     assert_eq!(history.len() as u64, j["iterations"].as_u64().unwrap() + 1);
+    // the discretisation check of the fitted model, against the observations' noise floor
+    let d = &j["discretisation"];
+    assert!(d["difference"].as_f64().unwrap() > 0.0, "{d}");
+    assert!(d["noise_floor"].as_f64().unwrap() >= 0.0, "{d}");
+    assert!(d["share"].is_number(), "{d}");
     for f in [
         "fit.json",
         "fit.log",
@@ -104,6 +109,7 @@ fn fit_recovers_the_truth_and_resumes() {
         "--out",
         out.to_str().unwrap(),
         "--resume",
+        "--no-refine-check",
         "--json",
     ]);
     let j = json(&o);
@@ -115,6 +121,7 @@ fn fit_recovers_the_truth_and_resumes() {
     assert!((e / 2000.0 - 1.0).abs() < 1e-3, "resumed E = {e}");
     let log = std::fs::read_to_string(out.join("fit.log")).unwrap();
     assert_eq!(log.lines().count(), h.len());
+    assert!(j["discretisation"].is_null(), "--no-refine-check skips it");
 }
 
 #[test]

@@ -178,3 +178,32 @@ fn bad_bodies_are_one_line_errors() {
     let huge = SMALL.replace("resolution = 10", "resolution = 100000");
     expect_error(&huge, "resolution");
 }
+
+/// `--refine-check`: the run again at twice and half the resolution; the JSON reports the
+/// difference of the surface motion, its observed order and the estimated error.
+#[test]
+fn simulate_refine_check_reports_the_discretisation_error() {
+    let dir = tmp("cli", "refine");
+    let scene = write(&dir, "small.toml", SMALL);
+    let out = dir.join("out");
+    let o = run(&[
+        "simulate",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--refine-check",
+        "--json",
+    ]);
+    ok(&o);
+    let v = json(&o);
+    let r = &v["refine_check"];
+    assert_eq!(r["resolution"], 10.0);
+    assert_eq!(r["finer_resolution"], 20.0);
+    let d = r["difference"].as_f64().unwrap();
+    let motion = r["motion"].as_f64().unwrap();
+    assert!(d > 0.0 && d < motion, "{r}");
+    assert!(r["estimate"].as_f64().unwrap() >= d);
+    assert_eq!(r["per_frame"].as_array().unwrap().len(), 4);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("discretisation:"), "{stderr}");
+}

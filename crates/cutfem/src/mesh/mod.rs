@@ -88,14 +88,15 @@ impl TriMesh {
         Some((lo, hi))
     }
 
-    /// Total surface area `sum_t |(b - a) x (c - a)| / 2`.
+    /// Area `|(b - a) x (c - a)| / 2` of face `f`.
+    pub fn triangle_area(&self, f: usize) -> f64 {
+        let [a, b, c] = self.triangle(f);
+        0.5 * norm(cross(sub(b, a), sub(c, a)))
+    }
+
+    /// Total surface area (the sum of [`TriMesh::triangle_area`]).
     pub fn area(&self) -> f64 {
-        (0..self.faces.len())
-            .map(|f| {
-                let [a, b, c] = self.triangle(f);
-                0.5 * norm(cross(sub(b, a), sub(c, a)))
-            })
-            .sum()
+        (0..self.faces.len()).map(|f| self.triangle_area(f)).sum()
     }
 
     /// Boundary half-edges `[a, b]`: a face uses `a -> b` more often than any face uses

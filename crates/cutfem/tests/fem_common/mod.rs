@@ -2,6 +2,8 @@
 
 #![allow(dead_code)]
 
+pub mod reference;
+
 use cutfem::fem::{Grid, Model, Simulation};
 use cutfem::SdfGrid;
 

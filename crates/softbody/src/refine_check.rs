@@ -1,0 +1,42 @@
+//! The discretisation check of `simulate --refine-check`, `fit` and `diagnose`
+//! (`adjoint::refine`): the same model state at resolutions `r/2`, `r` and `2r`, with a progress
+//! bar, a summary line and a warning on stderr, and its JSON.
+
+use crate::progress;
+use adjoint::refine::{refine_check, RefineParams};
+use cutfem::fem::{Grid, Model};
+use cutfem::scene::Scene;
+use serde_json::{json, Value};
+
+/// Runs the check of `model` on `grid` and reports it on stderr; its JSON (judged against
+/// `noise` when known), or `{"error": why}` when it could not run (the command goes on: the
+/// check is advice, not the result).
+pub fn run(
+    scene: &Scene,
+    grid: &Grid,
+    model: &Model,
+    params: &RefineParams,
+    noise: Option<f64>,
+    quiet: bool,
+) -> Value {
+    let bar = progress::bar(1, "refine check", quiet);
+    let result = refine_check(scene, grid, model, params, &mut |level, step, steps| {
+        bar.set_length(steps as u64);
+        bar.set_position(step as u64);
+        bar.set_message(level.to_string());
+    });
+    bar.finish_and_clear();
+    match result {
+        Ok(check) => {
+            eprintln!("{}", check.summary(noise));
+            if let Some(w) = check.warning(noise) {
+                eprintln!("warning: {w}");
+            }
+            check.to_json(noise)
+        }
+        Err(e) => {
+            eprintln!("refine check skipped: {e}");
+            json!({ "error": e })
+        }
+    }
+}
