@@ -26,7 +26,7 @@
 use crate::local::{
     cell_elastic_adjoint, contact_adjoint, deformation_gradient_adjoint, polar_rotation_adjoint,
 };
-use cutfem::fem::element::{corner_offsets, deformation_gradient, POLAR_ITERATIONS};
+use cutfem::fem::element::{corner_offsets, deformation_gradient_with, POLAR_ITERATIONS};
 use cutfem::fem::Simulation;
 use gpumat::{Mat3, Matrix, Vec3};
 use rayon::prelude::*;
@@ -137,13 +137,15 @@ pub fn step_adjoint(
             let r = rotations.map_or(Mat3::identity(), |r| r[e]);
             // the cell's term is s_e times the homogeneous one (linear in lambda, mu)
             let se = scale.map_or(1.0, |s| s[e]);
-            let (r_bar, dl, dm) = cell_elastic_adjoint(blocks.set(e), &r, &lam_e, &a_e, &x, dt);
+            let set = blocks.set(e);
+            let (r_bar, dl, dm) = cell_elastic_adjoint(set, &r, &lam_e, &a_e, &x, dt);
             let mut ub = [Vec3::default(); 8];
             if rotations.is_some() {
                 let u_e: [Vec3<f64>; 8] = std::array::from_fn(|q| us[d(q)]);
-                let f = deformation_gradient(&u_e, h);
+                let w = set.gradient_weights();
+                let f = deformation_gradient_with(&u_e, w, h);
                 let f_bar = polar_rotation_adjoint(f, POLAR_ITERATIONS, r_bar * se);
-                deformation_gradient_adjoint(&f_bar, h, &mut ub);
+                deformation_gradient_adjoint(&f_bar, w, h, &mut ub);
             }
             (ub, dl, dm, se)
         })

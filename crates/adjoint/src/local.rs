@@ -95,11 +95,17 @@ pub fn corner_signs(i: usize) -> Vec3<f64> {
     Vec3::new(s(0), s(1), s(2))
 }
 
-/// The adjoint of the average deformation gradient (eq. 4.4.8): adds `F_bar s_i / (4h)` to
-/// `u_bar[i]`.
-pub fn deformation_gradient_adjoint(f_bar: &Mat3<f64>, h: f64, u_bar: &mut [Vec3<f64>; 8]) {
-    for (i, ub) in u_bar.iter_mut().enumerate() {
-        *ub = *ub + *f_bar * corner_signs(i) * (1.0 / (4.0 * h));
+/// The adjoint of the average deformation gradient `F = I + 1/(4h) sum_i u_i a_i^T` (eq.
+/// 4.4.8 with the element's gradient weights `a`, `cutfem::fem::element::deformation_gradient_with`):
+/// adds `F_bar a_i / (4h)` to `u_bar[i]`.
+pub fn deformation_gradient_adjoint(
+    f_bar: &Mat3<f64>,
+    a: &[Vec3<f64>; 8],
+    h: f64,
+    u_bar: &mut [Vec3<f64>; 8],
+) {
+    for (ub, ai) in u_bar.iter_mut().zip(a) {
+        *ub = *ub + *f_bar * *ai * (1.0 / (4.0 * h));
     }
 }
 

@@ -89,10 +89,10 @@ fn cantilever_matches_beam_theory_without_locking() {
         "static tip deflection of the cantilever 2 x 0.2 x 0.2 (E = 1e5, nu = 0.3, gravity 10, end face x = 0 held) relative to Timoshenko",
         "cargo test --release -p cutfem --test fem_cantilever",
         &[
-            ("incompatible_h0.05", e05, 1e-6, 0.0),
-            ("incompatible_h0.025", e025, 1e-6, 0.0),
-            ("trilinear_h0.05", thesis, 1e-6, 0.0),
-            ("trilinear_h0.025", thesis025, 1e-6, 0.0),
+            ("incompatible_h0.05", e05, 0.0, 1e-7),
+            ("incompatible_h0.025", e025, 0.0, 1e-7),
+            ("trilinear_h0.05", thesis, 0.0, 1e-7),
+            ("trilinear_h0.025", thesis025, 0.0, 1e-7),
         ],
     );
 }
@@ -150,7 +150,7 @@ fn bar_held_at_both_ends_bends_as_beam_theory() {
         "bar_held_at_both_ends",
         "mid-span deflection of the bar 2 x 0.2 x 0.2 held at both end faces (h = 0.05, 4 cells thick) relative to Timoshenko's clamped-clamped beam",
         "cargo test --release -p cutfem --test fem_cantilever",
-        &[("incompatible", inc, 1e-6, 0.0), ("trilinear", thesis, 1e-6, 0.0)],
+        &[("incompatible", inc, 0.0, 1e-7), ("trilinear", thesis, 0.0, 1e-7)],
     );
 }
 
@@ -202,7 +202,7 @@ fn cantilever_trajectory_summary() {
     let rows: Vec<(&str, f64, f64, f64)> = keys
         .iter()
         .zip(&values)
-        .map(|(k, &(_, y))| (k.as_str(), y, 1e-6, 0.0))
+        .map(|(k, &(_, y))| (k.as_str(), y, 0.0, 1e-8))
         .collect();
     reference::check(
         "cantilever_trajectory",

@@ -19,7 +19,7 @@ mod blocks;
 mod enhanced;
 
 pub use blocks::ElementBlocks;
-pub use enhanced::{gram, Element, ElementSet, Gram, MONOMIALS};
+pub use enhanced::{gram, Element, ElementSet, Gram, FICTITIOUS_STIFFNESS, MONOMIALS};
 
 /// `grad N_i` at corner `c` of a cell of size `h`.
 pub fn basis_gradient(i: usize, c: usize, h: f64) -> Vec3<f64> {
@@ -155,18 +155,44 @@ pub fn corner_offsets(h: f64) -> [Vec3<f64>; 8] {
     })
 }
 
+/// The sign patterns `s_i = (+-1, +-1, +-1)` of the corners: the gradient weights of eq. 4.4.8
+/// ([`deformation_gradient`]).
+pub const CORNER_SIGNS: [Vec3<f64>; 8] = {
+    let mut s = [Vec3 {
+        x: 0.0,
+        y: 0.0,
+        z: 0.0,
+        w: 0.0,
+    }; 8];
+    let mut i = 0;
+    while i < 8 {
+        s[i] = Vec3 {
+            x: if i & 1 == 1 { 1.0 } else { -1.0 },
+            y: if i & 2 == 2 { 1.0 } else { -1.0 },
+            z: if i & 4 == 4 { 1.0 } else { -1.0 },
+            w: 0.0,
+        };
+        i += 1;
+    }
+    s
+};
+
 /// The average deformation gradient of a cell (eq. 4.4.8):
 /// `F = I + 1/(4h) sum_i u_i (s_i)^T` with `s_i = (+-1, +-1, +-1)` the corner's sign pattern.
 #[inline]
 pub fn deformation_gradient(u: &[Vec3<f64>; 8], h: f64) -> Mat3<f64> {
+    deformation_gradient_with(u, &CORNER_SIGNS, h)
+}
+
+/// The deformation gradient averaged with the weights `a`: `F = I + 1/(4h) sum_i u_i a_i^T`.
+/// With `a = `[`CORNER_SIGNS`] it is the gradient at the cell's centre, the average over the
+/// whole cell (eq. 4.4.8); [`ElementSet::gradient_weights`] gives the average over the cell's
+/// inside part (`a_i = 4 mean grad_xi N_i` there), which the exactly integrated elements use.
+#[inline]
+pub fn deformation_gradient_with(u: &[Vec3<f64>; 8], a: &[Vec3<f64>; 8], h: f64) -> Mat3<f64> {
     let mut f = Mat3::identity();
-    for (i, ui) in u.iter().enumerate() {
-        let s = Vec3::new(
-            if i & 1 == 1 { 1.0 } else { -1.0 },
-            if i & 2 == 2 { 1.0 } else { -1.0 },
-            if i & 4 == 4 { 1.0 } else { -1.0 },
-        );
-        f = f + ui.outer(s) * (1.0 / (4.0 * h));
+    for (ui, ai) in u.iter().zip(a) {
+        f = f + ui.outer(*ai) * (1.0 / (4.0 * h));
     }
     f
 }
@@ -192,13 +218,20 @@ pub fn polar_rotation(f: Mat3<f64>, iterations: usize) -> Mat3<f64> {
     r
 }
 
-/// The rotations of four cells at once ([`polar_rotation`] of [`deformation_gradient`] with
-/// the corner displacements `u[l]` of cell `l`), cell `l` in lane `l` of every vector: per
+/// The rotations of four cells at once ([`polar_rotation`] of [`deformation_gradient_with`]
+/// with the corner displacements `u[l]` and gradient weights `a[l]` of cell `l`), cell `l` in
+/// lane `l` of every vector: per
 /// lane the same operations in the same order as the scalar functions (and the same identity
 /// fallbacks), so the values are bit-identical to them; four independent chains of divisions
 /// run side by side.
 #[inline(always)]
-pub fn cell_rotations4<S: Simd4>(s: S, u: &[[Vec3<f64>; 8]; 4], h: f64, iterations: usize) -> [Mat3<f64>; 4] {
+pub fn cell_rotations4<S: Simd4>(
+    s: S,
+    u: &[[Vec3<f64>; 8]; 4],
+    a: &[[Vec3<f64>; 8]; 4],
+    h: f64,
+    iterations: usize,
+) -> [Mat3<f64>; 4] {
     // (no closures or array maps: everything must inline into the caller's vector code)
     #[inline(always)]
     fn det<S: Simd4>(s: S, m: &[[S::V; 3]; 3]) -> S::V {
@@ -214,21 +247,20 @@ pub fn cell_rotations4<S: Simd4>(s: S, u: &[[Vec3<f64>; 8]; 4], h: f64, iteratio
         let y = s.mul(m[i[4]][i[5]], m[i[6]][i[7]]);
         s.mul(s.sub(x, y), inv)
     }
-    // F = I + sum_i (u_i s_i^T) / (4h)
+    // F = I + sum_i (u_i a_i^T) / (4h)
     let k = s.splat(1.0 / (4.0 * h));
     let (one, zero) = (s.splat(1.0), s.splat(0.0));
     let mut f = [[one, zero, zero], [zero, one, zero], [zero, zero, one]];
     for i in 0..8 {
-        let sign = [
-            if i & 1 == 1 { 1.0 } else { -1.0 },
-            if i & 2 == 2 { 1.0 } else { -1.0 },
-            if i & 4 == 4 { 1.0 } else { -1.0 },
-        ];
+        let w = [0, 1, 2].map(|q| {
+            let c = |l: usize| a[l][i].to_array()[q];
+            s.set([c(0), c(1), c(2), c(3)])
+        });
         for p in 0..3 {
             let c = |l: usize| u[l][i].to_array()[p];
             let up = s.set([c(0), c(1), c(2), c(3)]);
             for q in 0..3 {
-                f[p][q] = s.add(f[p][q], s.mul(s.mul(up, s.splat(sign[q])), k));
+                f[p][q] = s.add(f[p][q], s.mul(s.mul(up, w[q]), k));
             }
         }
     }
@@ -430,10 +462,19 @@ mod tests {
         for q in [1, 3, 5, 7] {
             u[3][q] = Vec3::new(-0.5, 0.0, 0.0); // flattened along x: det F = 0
         }
-        let got = cell_rotations4(s, &u, 0.25, POLAR_ITERATIONS);
+        // the centre weights, and in lane 1 the weights of a cut cell
+        let mut a = [CORNER_SIGNS; 4];
+        for w in a[1].iter_mut() {
+            *w = *w * 0.7 + Vec3::new(next(), next(), next()) * 0.1;
+        }
+        let got = cell_rotations4(s, &u, &a, 0.25, POLAR_ITERATIONS);
         for l in 0..4 {
-            let want = polar_rotation(deformation_gradient(&u[l], 0.25), POLAR_ITERATIONS);
+            let want = polar_rotation(deformation_gradient_with(&u[l], &a[l], 0.25), POLAR_ITERATIONS);
             assert_eq!(bits(&got[l]), bits(&want), "cell {l}");
+            if l != 1 {
+                let centre = polar_rotation(deformation_gradient(&u[l], 0.25), POLAR_ITERATIONS);
+                assert_eq!(bits(&got[l]), bits(&centre), "cell {l}");
+            }
         }
         assert_eq!(got[3], Mat3::identity());
     }

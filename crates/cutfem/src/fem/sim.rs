@@ -240,7 +240,10 @@ impl Simulation {
     fn assemble_stiffness(&mut self, corotation: bool) -> (Option<Vec<Mat3<f64>>>, ElementBlocks) {
         let m = self.material();
         let blocks = self.blocks();
-        let rot = corotation.then(|| self.assembler.rotations(&self.grid, &self.u, POLAR_ITERATIONS));
+        let rot = corotation.then(|| {
+            self.assembler
+                .rotations(&self.grid, &blocks, &self.u, POLAR_ITERATIONS)
+        });
         let mut k = self.k.buffer(self.assembler.pattern());
         self.assembler.assemble_stiffness(
             &self.grid,

@@ -16,7 +16,7 @@
 //! relative to the cell ([`corner_offsets`]). Without corotation `R = I` and `z_j = cu u_j`.
 
 use super::super::element::{
-    cell_rotations4, comb, corner_offsets, lanes3, padded_transpose, ElementBlocks, PaddedBlock,
+    cell_rotations4, comb, corner_offsets, lanes3, padded_transpose, ElementBlocks, PaddedBlock, CORNER_SIGNS,
 };
 use super::super::grid::{Cell, Grid};
 use super::{Assembler, Material};
@@ -25,12 +25,20 @@ use gpumat::{Mat3, Matrix, Vec3};
 use rayon::prelude::*;
 
 impl Assembler {
-    /// Per-cell rotations from the displacement `u` (eq. 4.4.8-4.4.9).
-    pub fn rotations(&self, grid: &Grid, u: &Matrix<Vec3<f64>>, iterations: usize) -> Vec<Mat3<f64>> {
+    /// Per-cell rotations from the displacement `u` (eq. 4.4.8-4.4.9, with the element's
+    /// gradient weights, [`ElementSet::gradient_weights`](super::super::element::ElementSet::gradient_weights)).
+    pub fn rotations(
+        &self,
+        grid: &Grid,
+        blocks: &ElementBlocks,
+        u: &Matrix<Vec3<f64>>,
+        iterations: usize,
+    ) -> Vec<Mat3<f64>> {
         let us = u.as_slice();
         grid.cells
             .par_iter()
-            .map(|c| cell_rotation(grid, us, c, iterations))
+            .enumerate()
+            .map(|(e, c)| cell_rotation(grid, us, c, blocks.set(e).gradient_weights(), iterations))
             .collect()
     }
 
@@ -138,6 +146,7 @@ impl Kernel for Chunk<'_> {
         // end get a zero displacement)
         for g in (0..n).step_by(4) {
             let mut u = [[Vec3::default(); 8]; 4];
+            let mut a = [CORNER_SIGNS; 4];
             let lanes = (n - g).min(4);
             for (l, ul) in u.iter_mut().enumerate().take(lanes) {
                 let dofs = &w.asm.cell_dofs[self.e0 + g + l];
@@ -147,7 +156,10 @@ impl Kernel for Chunk<'_> {
             }
             let r4 = match r.as_deref_mut() {
                 Some(rs) => {
-                    let r4 = cell_rotations4(s, &u, w.grid.h(), w.iterations);
+                    for (l, al) in a.iter_mut().enumerate().take(lanes) {
+                        *al = *w.blocks.set(self.e0 + g + l).gradient_weights();
+                    }
+                    let r4 = cell_rotations4(s, &u, &a, w.grid.h(), w.iterations);
                     rs[g..g + lanes].copy_from_slice(&r4[..lanes]);
                     r4
                 }
@@ -241,13 +253,19 @@ pub(super) fn cell_rhs<S: Simd4>(
 
 /// The rotation of cell `c` (eq. 4.4.8-4.4.9).
 #[inline(always)]
-fn cell_rotation(grid: &Grid, us: &[Vec3<f64>], c: &Cell, iterations: usize) -> Mat3<f64> {
+fn cell_rotation(
+    grid: &Grid,
+    us: &[Vec3<f64>],
+    c: &Cell,
+    a: &[Vec3<f64>; 8],
+    iterations: usize,
+) -> Mat3<f64> {
     let mut ue = [Vec3::default(); 8];
     for q in 0..8 {
         ue[q] = us[c.dofs[q] as usize];
     }
     super::super::element::polar_rotation(
-        super::super::element::deformation_gradient(&ue, grid.h()),
+        super::super::element::deformation_gradient_with(&ue, a, grid.h()),
         iterations,
     )
 }
