@@ -7,6 +7,7 @@ use adjoint::params::ParamSet;
 use adjoint::problem::Problem;
 use cutfem::fem::advect::Diffusion;
 use cutfem::fem::collision::{ContactScheme, Ground};
+use cutfem::fem::element::Element;
 use cutfem::fem::{Aabb, Grid, Model, Simulation};
 use cutfem::shapes::Shape;
 use cutfem::surface::extract_surface;
@@ -143,6 +144,28 @@ fn displacement_cost_gradient_matches_finite_differences() {
             .collect(),
     };
     let mut p = problem(Box::new(cost), all_params());
+    check_against_fd(&mut p, 1e-6);
+}
+
+/// The same with the incompatible element (exact integration, condensed bubbles, the empty
+/// part at `FICTITIOUS_STIFFNESS`, rotations from the inside-averaged deformation gradient).
+#[test]
+fn displacement_cost_gradient_matches_finite_differences_incompatible() {
+    let incompatible = |mut m: Model| {
+        m.element = Element::Incompatible;
+        assert!(m.corotation);
+        m
+    };
+    let reference = trajectory(incompatible(truth()));
+    let cost = DisplacementCost {
+        reference: (2..=STEPS)
+            .step_by(2)
+            .map(|t| (t, 1.0, reference[t].clone()))
+            .collect(),
+    };
+    let mut sim = Simulation::new(grid(), incompatible(start())).unwrap();
+    sim.solver.direct = true;
+    let mut p = Problem::new(sim, all_params(), Box::new(cost), STEPS).unwrap();
     check_against_fd(&mut p, 1e-6);
 }
 
