@@ -794,7 +794,6 @@ def max_displacement_per_frame(frames):
 def observe(body, frames, case, rng, s=8):
     surf = Surface(body, s)
     visible = ~body.clamped_facet[surf.tf]       # a clamped face sits against its support
-    rows = []
     noisy_all, frame_all = [], []
     for f in range(1, case["steps"] + 1):
         if f % case["obs_every"] != 0 and f != case["steps"]:
