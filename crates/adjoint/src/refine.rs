@@ -332,16 +332,7 @@ fn run(
 /// containing `p` (renormalized; `None` when they carry less than 1e-6 of the weight).
 pub fn displacement_at(grid: &Grid, u: &Matrix<Vec3<f64>>, p: [f64; 3]) -> Option<[f64; 3]> {
     let s = &grid.sdf;
-    let mut c = [0usize; 3];
-    let mut t = [0.0; 3];
-    for d in 0..3 {
-        let x = (p[d] - s.origin[d]) / s.spacing;
-        if !(x >= 0.0 && x <= (s.dims[d] - 1) as f64) {
-            return None;
-        }
-        c[d] = (x.floor() as usize).min(s.dims[d] - 2);
-        t[d] = x - c[d] as f64;
-    }
+    let (c, t) = s.locate(p)?;
     let (mut sum, mut wsum) = ([0.0; 3], 0.0);
     for k in 0..8 {
         let o = [k & 1, (k >> 1) & 1, (k >> 2) & 1];

@@ -176,7 +176,7 @@ impl SdfGrid {
 
     /// Local cell and fractions of `p`: `None` outside the grid's box (a tolerance of `1e-9`
     /// cells admits points on the boundary despite round-off) or for a degenerate grid.
-    fn locate(&self, p: [f64; 3]) -> Option<([usize; 3], [f64; 3])> {
+    pub fn locate(&self, p: [f64; 3]) -> Option<([usize; 3], [f64; 3])> {
         let mut cell = [0usize; 3];
         let mut frac = [0.0; 3];
         for a in 0..3 {

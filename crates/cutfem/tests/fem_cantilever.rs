@@ -29,22 +29,30 @@ fn timoshenko() -> f64 {
     q * L.powi(4) / (8.0 * E * i) + q * L * L / (2.0 * kappa * g * H * W)
 }
 
-/// Tip deflection (mean vertical displacement of the nodes on the free end face) at cell size
-/// `h`; the faces lie on grid lines, the box holds the end face x = 0 alone.
-fn tip_deflection(h: f64, element: Element) -> f64 {
-    let model = Model {
+/// The box holding the end face x = 0 alone.
+const END: Aabb = Aabb {
+    min: [-1.0, -1.0, -1.0],
+    max: [0.0, 1.0, 1.0],
+};
+
+/// The beam's linear model under gravity with `element`, held by `dirichlet`.
+fn beam(element: Element, dirichlet: Vec<Aabb>) -> Model {
+    Model {
         young: E,
         poisson: NU,
         density: 1.0,
         gravity: Vec3::new(0.0, -10.0, 0.0),
         corotation: false,
         element,
-        dirichlet: vec![Aabb {
-            min: [-1.0, -1.0, -1.0],
-            max: [0.0, 1.0, 1.0],
-        }],
+        dirichlet,
         ..Model::default()
-    };
+    }
+}
+
+/// Tip deflection (mean vertical displacement of the nodes on the free end face) at cell size
+/// `h`; the faces lie on grid lines, the box holds the end face x = 0 alone.
+fn tip_deflection(h: f64, element: Element) -> f64 {
+    let model = beam(element, vec![END]);
     let mut sim: Simulation = box_sim([0.5 * L, 0.0, 0.0], [L, H, W], h, model);
     sim.solver.direct = true;
     sim.solve_static().expect("static solve");
@@ -109,25 +117,11 @@ fn bar_held_at_both_ends_bends_as_beam_theory() {
     let kappa = 10.0 * (1.0 + NU) / (12.0 + 11.0 * NU);
     let exact = q * L.powi(4) / (384.0 * E * i) + q * L * L / (8.0 * kappa * g * H * W);
     let mid = |el: Element| {
-        let model = Model {
-            young: E,
-            poisson: NU,
-            density: 1.0,
-            gravity: Vec3::new(0.0, -10.0, 0.0),
-            corotation: false,
-            element: el,
-            dirichlet: vec![
-                Aabb {
-                    min: [-1.0, -1.0, -1.0],
-                    max: [0.0, 1.0, 1.0],
-                },
-                Aabb {
-                    min: [L, -1.0, -1.0],
-                    max: [L + 1.0, 1.0, 1.0],
-                },
-            ],
-            ..Model::default()
+        let far_end = Aabb {
+            min: [L, -1.0, -1.0],
+            max: [L + 1.0, 1.0, 1.0],
         };
+        let model = beam(el, vec![END, far_end]);
         let mut sim = box_sim([0.5 * L, 0.0, 0.0], [L, H, W], 0.05, model);
         sim.solver.direct = true;
         sim.solve_static().expect("static solve");
@@ -160,19 +154,10 @@ fn bar_held_at_both_ends_bends_as_beam_theory() {
 #[test]
 fn cantilever_trajectory_summary() {
     let model = Model {
-        young: E,
-        poisson: NU,
-        density: 1.0,
-        gravity: Vec3::new(0.0, -10.0, 0.0),
         corotation: true,
-        element: Element::Incompatible,
-        dirichlet: vec![Aabb {
-            min: [-1.0, -1.0, -1.0],
-            max: [0.0, 1.0, 1.0],
-        }],
         dt: 0.02,
         theta: 0.5,
-        ..Model::default()
+        ..beam(Element::Incompatible, vec![END])
     };
     let mut sim = box_sim([0.5 * L, 0.0, 0.0], [L, H, W], 0.05, model);
     sim.solver.direct = true;
