@@ -167,8 +167,11 @@ pub fn step_adjoint(
         });
     }
 
-    // Nitsche terms: linear in (lambda, mu), independent of u
+    // Nitsche terms: linear in (lambda, mu, eta), independent of u; a scaled penalty is
+    // `eta = p (lambda + 2 mu) se` (`NitschePenalty::terms`), so d/dlambda carries `p` and
+    // d/dmu `2 p`; a fixed one does not depend on them
     let w_at = |q: usize| us[q] * cw - uns[q] * cn;
+    let p = model.nitsche.terms(grid.h()).1;
     for (e, c) in grid.cells.iter().enumerate() {
         let Some(ci) = &sim.dirichlet[e] else {
             continue;
@@ -179,8 +182,8 @@ pub fn step_adjoint(
             let li = ls[c.dofs[i] as usize];
             for j in 0..8 {
                 let wj = w_at(c.dofs[j] as usize);
-                let nl = li.dot(tables.nitsche_block(&ci.boundary, n, i, j, 1.0, 0.0, 0.0) * wj);
-                let nm = li.dot(tables.nitsche_block(&ci.boundary, n, i, j, 0.0, 1.0, 0.0) * wj);
+                let nl = li.dot(tables.nitsche_block(&ci.boundary, n, i, j, 1.0, 0.0, p) * wj);
+                let nm = li.dot(tables.nitsche_block(&ci.boundary, n, i, j, 0.0, 1.0, 2.0 * p) * wj);
                 grad.lambda += se * nl;
                 grad.mu += se * nm;
                 grad.cell_scale[e] += lame_l * nl + lame_m * nm;

@@ -33,7 +33,6 @@ fn run(h: f64, element: Element, shift: f64, clamp_cells: f64, nu: f64) -> f64 {
         gravity: Vec3::new(0.0, -10.0, 0.0),
         corotation: false,
         element,
-        nitsche_eta: if nu > 0.45 { 1e10 } else { 1e8 },
         dirichlet: vec![Aabb {
             min: [-1.0, -1.0, -1.0],
             max: [clamp_cells * h, 1.0, 1.0],

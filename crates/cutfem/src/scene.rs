@@ -311,6 +311,7 @@ impl Scene {
                 }
             }
         }
+        self.numerics.nitsche().map_err(|e| Error::format(path, e))?;
         self.to_model()
             .validate()
             .map_err(|e| Error::format(path, e.to_string()))
@@ -387,7 +388,8 @@ impl Scene {
             corotation: self.effect_on("corotation"),
             dt: self.time.dt,
             theta: self.time.theta,
-            nitsche_eta: self.numerics.nitsche_eta,
+            // both keys given is refused by `check`
+            nitsche: self.numerics.nitsche().unwrap_or_default(),
             element: self.numerics.element,
             dirichlet: self
                 .dirichlet

@@ -287,7 +287,8 @@ fn element_blocks_share_sets_of_cells_cut_alike() {
         let m = Material {
             lambda,
             mu,
-            eta: sim.model.nitsche_eta,
+            eta: sim.model.nitsche.terms(sim.grid.h()).0,
+            eta_per_modulus: sim.model.nitsche.terms(sim.grid.h()).1,
             element,
         };
         let blocks = sim.assembler.element_blocks(&sim.grid, &m);

@@ -82,10 +82,20 @@ pub struct Material {
     pub lambda: f64,
     /// Lame mu
     pub mu: f64,
-    /// Nitsche penalty eta
+    /// the fixed part of the Nitsche penalty ([`crate::fem::NitschePenalty::terms`])
     pub eta: f64,
+    /// the part of the Nitsche penalty per unit of `lambda + 2 mu`
+    pub eta_per_modulus: f64,
     /// the grid element
     pub element: super::element::Element,
+}
+
+impl Material {
+    /// The Nitsche penalty of a cell whose Young's modulus is scaled by `se`.
+    #[inline(always)]
+    pub fn penalty(&self, se: f64) -> f64 {
+        self.eta + self.eta_per_modulus * (self.lambda + 2.0 * self.mu) * se
+    }
 }
 
 /// The pattern, gather maps and tables, built once per grid.
@@ -351,8 +361,15 @@ impl Assembler {
             return Mat3::default();
         };
         let n = Vec3::from_array(f.normal);
-        self.tables
-            .nitsche_block(&f.boundary, n, i, j, c.m.lambda * se, c.m.mu * se, c.m.eta)
+        self.tables.nitsche_block(
+            &f.boundary,
+            n,
+            i,
+            j,
+            c.m.lambda * se,
+            c.m.mu * se,
+            c.m.penalty(se),
+        )
     }
 
     /// The blocks of row `r` from the diagonal on without rotation: each the sum of its

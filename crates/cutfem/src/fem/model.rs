@@ -136,8 +136,8 @@ pub struct Model {
     pub corotation: bool,
     /// regions held at zero displacement (Nitsche)
     pub dirichlet: Vec<Aabb>,
-    /// Nitsche penalty `eta` (thesis: 1e8)
-    pub nitsche_eta: f64,
+    /// the Nitsche penalty of the held surface ([`NitschePenalty`])
+    pub nitsche: NitschePenalty,
     /// the grid element (`[numerics] element`)
     pub element: super::element::Element,
     /// initial linear velocity
@@ -155,6 +155,46 @@ pub struct Model {
     pub theta: f64,
 }
 
+/// The Nitsche penalty `eta` of the held surface (eq. 4.4.16-4.4.17).
+///
+/// The thesis fixes `eta = 1e8` whatever the material and the cell size. A penalty far above
+/// `(lambda + 2 mu) / h` turns the weak clamp into a penalty method: the held surface is then
+/// pinned pointwise, and a sliver of held surface in a cell (a box a little wider than the face
+/// it holds catches strips of the side faces) pins the whole cell, which shortens a cantilever
+/// by a cell (10% stiffer at four cells through the thickness, `docs/simulation.md`). A penalty
+/// below a few `(lambda + 2 mu) / h` loses coercivity. [`NitschePenalty::Scaled`] keeps the
+/// ratio fixed, so the clamp behaves the same in any units, for any material and resolution.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NitschePenalty {
+    /// `eta = gamma (lambda + 2 mu) / h` with the cell's own Lame constants (the stiffness
+    /// field included); `[numerics] nitsche_gamma`, default [`DEFAULT_NITSCHE_GAMMA`]
+    Scaled(f64),
+    /// a fixed `eta` in stress per length (the thesis: 1e8); `[numerics] nitsche_eta`
+    Fixed(f64),
+}
+
+/// The default `gamma` of [`NitschePenalty::Scaled`]: the smallest power-of-two multiple of 10
+/// with which every cut configuration of the coercivity sweep in `tests/fem_nitsche.rs` stays
+/// positive definite (both elements, `nu` up to 0.49).
+pub const DEFAULT_NITSCHE_GAMMA: f64 = 20.0;
+
+impl Default for NitschePenalty {
+    fn default() -> Self {
+        Self::Scaled(DEFAULT_NITSCHE_GAMMA)
+    }
+}
+
+impl NitschePenalty {
+    /// `(eta, eta per unit of lambda + 2 mu)` on a grid of cell size `h`: the penalty of a cell
+    /// whose Lame constants are `lambda, mu` is `eta + per_modulus (lambda + 2 mu)`.
+    pub fn terms(self, h: f64) -> (f64, f64) {
+        match self {
+            Self::Scaled(gamma) => (0.0, gamma / h),
+            Self::Fixed(eta) => (eta, 0.0),
+        }
+    }
+}
+
 impl Default for Model {
     fn default() -> Self {
         Self {
@@ -167,7 +207,7 @@ impl Default for Model {
             ground: None,
             corotation: true,
             dirichlet: Vec::new(),
-            nitsche_eta: 1e8,
+            nitsche: NitschePenalty::default(),
             element: super::element::Element::default(),
             initial_velocity: Vec3::default(),
             initial_angular_velocity: Vec3::default(),
@@ -219,11 +259,12 @@ impl Model {
                 format!("Newmark theta must lie in [0.5, 1), got {}", self.theta),
             );
         }
-        if !(self.nitsche_eta > 0.0 && self.nitsche_eta.is_finite()) {
-            return bad(
-                "numerics.nitsche_eta",
-                format!("must be positive, got {}", self.nitsche_eta),
-            );
+        let (key, value) = match self.nitsche {
+            NitschePenalty::Scaled(g) => ("numerics.nitsche_gamma", g),
+            NitschePenalty::Fixed(eta) => ("numerics.nitsche_eta", eta),
+        };
+        if !(value > 0.0 && value.is_finite()) {
+            return bad(key, format!("must be positive, got {value}"));
         }
         if !self.gravity.to_array().iter().all(|g| g.is_finite()) {
             return bad("gravity.acceleration", "must be finite".into());

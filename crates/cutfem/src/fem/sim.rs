@@ -217,10 +217,12 @@ impl Simulation {
 
     fn material(&self) -> Material {
         let (lambda, mu) = self.model.lame();
+        let (eta, eta_per_modulus) = self.model.nitsche.terms(self.grid.h());
         Material {
             lambda,
             mu,
-            eta: self.model.nitsche_eta,
+            eta,
+            eta_per_modulus,
             element: self.model.element,
         }
     }

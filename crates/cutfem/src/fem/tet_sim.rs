@@ -144,6 +144,7 @@ impl TetSimulation {
             lambda,
             mu,
             eta: 0.0,
+            eta_per_modulus: 0.0,
             element: self.model.element,
         }
     }

@@ -6,9 +6,13 @@ use serde::Deserialize;
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct NumericsSection {
-    /// Nitsche penalty eta
-    #[serde(default = "eta")]
-    pub nitsche_eta: f64,
+    /// a fixed Nitsche penalty eta (the thesis: 1e8); excludes `nitsche_gamma`
+    #[serde(default)]
+    pub nitsche_eta: Option<f64>,
+    /// the Nitsche penalty relative to the material and the cell size, `eta = gamma (lambda +
+    /// 2 mu) / h` ([`crate::fem::NitschePenalty`]); default 20 when neither is given
+    #[serde(default)]
+    pub nitsche_gamma: Option<f64>,
     /// relative CG tolerance
     #[serde(default = "cg_tol")]
     pub cg_tolerance: f64,
@@ -62,9 +66,6 @@ pub enum DiffusionName {
     /// second-difference minimization, exact for linear fields
     Linear,
 }
-fn eta() -> f64 {
-    1e8
-}
 fn cg_tol() -> f64 {
     1e-8
 }
@@ -74,12 +75,30 @@ fn cg_max() -> usize {
 impl Default for NumericsSection {
     fn default() -> Self {
         Self {
-            nitsche_eta: eta(),
+            nitsche_eta: None,
+            nitsche_gamma: None,
             cg_tolerance: cg_tol(),
             cg_max_iterations: cg_max(),
             diffusion: DiffusionName::default(),
             preconditioner: PreconditionerName::default(),
             element: crate::fem::element::Element::default(),
+        }
+    }
+}
+
+impl NumericsSection {
+    /// The Nitsche penalty: `nitsche_eta` (fixed) or `nitsche_gamma` (scaled), not both.
+    pub fn nitsche(&self) -> Result<crate::fem::NitschePenalty, String> {
+        use crate::fem::NitschePenalty;
+        match (self.nitsche_eta, self.nitsche_gamma) {
+            (Some(_), Some(_)) => Err(
+                "numerics: give nitsche_eta (a fixed penalty) or nitsche_gamma (a \
+                 penalty scaled with the material and the cell size), not both"
+                    .into(),
+            ),
+            (Some(eta), None) => Ok(NitschePenalty::Fixed(eta)),
+            (None, Some(g)) => Ok(NitschePenalty::Scaled(g)),
+            (None, None) => Ok(NitschePenalty::default()),
         }
     }
 }

@@ -182,13 +182,13 @@ impl Kernel for Chunk<'_> {
 }
 
 impl CellSweep<'_> {
-    /// `c_i += cu sum_j N_ij u_j` for the Nitsche blocks `N_ij` of cell `e` (traction terms
-    /// scaled by `sc`, the penalty not; only corners on a common edge have any, see
+    /// `c_i += cu sum_j N_ij u_j` for the Nitsche blocks `N_ij` of cell `e` (Young's modulus
+    /// scaled by `sc`; only corners on a common edge have any, see
     /// [`StiffnessTables::nitsche_block`](super::super::element::StiffnessTables::nitsche_block)).
     #[inline(never)]
     fn add_nitsche(&self, f: &crate::fem::NitscheFace, u: &[Vec3<f64>; 8], sc: f64, c: &mut [Vec3<f64>; 8]) {
         let n = Vec3::from_array(f.normal);
-        let (lambda, mu) = (self.m.lambda * sc, self.m.mu * sc);
+        let (lambda, mu, eta) = (self.m.lambda * sc, self.m.mu * sc, self.m.penalty(sc));
         for (i, ci_out) in c.iter_mut().enumerate() {
             let mut acc = Vec3::default();
             for (j, uj) in u.iter().enumerate() {
@@ -196,7 +196,7 @@ impl CellSweep<'_> {
                     let nb = self
                         .asm
                         .tables()
-                        .nitsche_block(&f.boundary, n, i, j, lambda, mu, self.m.eta);
+                        .nitsche_block(&f.boundary, n, i, j, lambda, mu, eta);
                     acc = acc + nb * *uj;
                 }
             }

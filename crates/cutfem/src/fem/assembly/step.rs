@@ -339,7 +339,8 @@ mod tests {
             let m = crate::fem::Material {
                 lambda,
                 mu,
-                eta: s.model.nitsche_eta,
+                eta: s.model.nitsche.terms(s.grid.h()).0,
+                eta_per_modulus: s.model.nitsche.terms(s.grid.h()).1,
                 element: s.model.element,
             };
             let scale = s.model.stiffness_scale.as_deref();
