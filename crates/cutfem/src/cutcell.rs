@@ -138,7 +138,7 @@ mod boxed;
 mod quadrature;
 mod refine;
 
-pub use boxed::refined_boundary_in_box;
+pub use boxed::{refined_boundary_in_box, refined_surface_in_box};
 pub(crate) use quadrature::add_box_moments;
 use quadrature::{add_tet, TRI_RULE};
 
@@ -261,6 +261,20 @@ pub fn cell_integrals(phi: &[f64; 8], h: f64) -> CellIntegrals {
 /// [`cell_integrals`] with the surface integrals restricted to the box `clip` (unit-cube
 /// coordinates) when set.
 fn cell_integrals_in(phi: &[f64; 8], h: f64, clip: Option<[P3; 2]>) -> CellIntegrals {
+    cell_integrals_into(
+        phi,
+        h,
+        Accum {
+            clip,
+            ..Default::default()
+        },
+    )
+    .0
+}
+
+/// [`cell_integrals_in`] accumulating into `acc` (its clip box and point recording), with the
+/// recorded surface points scaled to world area.
+fn cell_integrals_into(phi: &[f64; 8], h: f64, mut acc: Accum) -> (CellIntegrals, Vec<SurfacePoint>) {
     assert!(
         h > 0.0 && h.is_finite(),
         "cell size h must be positive and finite, got {h}"
@@ -268,21 +282,17 @@ fn cell_integrals_in(phi: &[f64; 8], h: f64, clip: Option<[P3; 2]>) -> CellInteg
     let p = snap(phi, h);
     let n_in = p.iter().filter(|&&v| v < 0.0).count();
     if n_in == 0 {
-        return CellIntegrals::default();
+        return (CellIntegrals::default(), Vec::new());
     }
     if n_in == 8 {
-        return CellIntegrals::full(h);
+        return (CellIntegrals::full(h), Vec::new());
     }
     // Integrate on the unit cube, then scale.
-    let mut acc = Accum {
-        clip,
-        ..Default::default()
-    };
     let pos = std::array::from_fn(corner);
     for tet in &KUHN_TETS {
         clip_tet(tet, &p, &pos, &mut acc);
     }
-    acc.finish(h)
+    (acc.finish(h), acc.take_points(h))
 }
 
 /// Number of cells along x, y, z of a grid (`dims - 1`, or 0).
@@ -347,6 +357,17 @@ pub fn total_area(cells: &[Option<CellIntegrals>]) -> f64 {
 
 pub(crate) type P3 = [f64; 3];
 
+/// A quadrature point of a cell's surface ([`refined_surface_in_box`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePoint {
+    /// position on the unit cube of the cell
+    pub x: [f64; 3],
+    /// quadrature weight, world area
+    pub weight: f64,
+    /// unit outward normal (direction of increasing phi) of the surface triangle
+    pub normal: [f64; 3],
+}
+
 /// Running sums on the unit cube.
 #[derive(Default)]
 struct Accum {
@@ -357,9 +378,20 @@ struct Accum {
     /// when set, surface integrals only over the part inside this box (unit-cube
     /// coordinates; [`boxed`])
     clip: Option<[P3; 2]>,
+    /// when set, every surface quadrature point is recorded (weights on the unit cube)
+    points: Option<Vec<SurfacePoint>>,
 }
 
 impl Accum {
+    /// The recorded surface points with their weights scaled to a cell of size `h`.
+    fn take_points(&mut self, h: f64) -> Vec<SurfacePoint> {
+        let mut p = self.points.take().unwrap_or_default();
+        for q in &mut p {
+            q.weight *= h * h;
+        }
+        p
+    }
+
     /// Scales the unit-cube sums to a cell of size `h` and normalises the normal.
     fn finish(&self, h: f64) -> CellIntegrals {
         let h2 = h * h;
@@ -439,6 +471,13 @@ fn add_tri_whole(v: [P3; 3], dir: P3, acc: &mut Accum) {
             let n = basis(x);
             for i in 0..8 {
                 acc.boundary[i] += area * w * n[i];
+            }
+            if let Some(p) = &mut acc.points {
+                p.push(SurfacePoint {
+                    x,
+                    weight: area * w,
+                    normal: dir,
+                });
             }
         }
     }

@@ -341,10 +341,13 @@ impl Comparison {
 /// The thesis' cuboid (sec. 4.6) at resolution 10 (cell size 1/20), clamped at one end,
 /// swinging under gravity with corotation and Rayleigh damping for 30 steps: the tip
 /// trajectories of the grid and the tetrahedra agree within 5% of the largest tip
-/// displacement, and the linear static deflections within 2%, the tetrahedra (linear, stiffer
-/// in bending) deflecting less. (With the thesis' fixed Nitsche penalty, which pinned the
-/// first cell layer, the grid was stiffer and the two agreed within 1%; the scaled penalty,
-/// `NitschePenalty`, clamps without pinning: grid -0.11257, tets -0.11090, -1.5%.)
+/// displacement, and the linear static deflections within 4%, the tetrahedra deflecting
+/// less. The two do not hold the same thing: the tetrahedra hold every node in the box (the
+/// first two node layers, interior nodes included), the grid the body's surface in the box
+/// (Nitsche). With the thesis' lumped Nitsche terms and fixed penalty, which pinned every cell
+/// touching held surface, the grid's clamp was node-like and the static deflections agreed
+/// within 1%; with the consistent terms and the scaled penalty (`fem::NitscheFace`,
+/// `NitschePenalty`) the grid deflects 3.3% more (grid -0.11472, tets -0.11090).
 #[test]
 fn grid_and_tet_cuboid_agree() {
     let c = Comparison::run(CUBOID_CENTER, CUBOID_SIZE, 0.05, 2000.0, 30);
@@ -354,7 +357,7 @@ fn grid_and_tet_cuboid_agree() {
         "trajectory difference {}",
         c.trajectory_error()
     );
-    assert!(c.static_error() < 0.02, "static difference {}", c.static_error());
+    assert!(c.static_error() < 0.04, "static difference {}", c.static_error());
     assert!(c.tet_static.abs() < c.grid_static.abs());
 }
 
@@ -362,7 +365,7 @@ fn grid_and_tet_cuboid_agree() {
 /// trilinear cells; at 4 cells across the tip deflections differ by about 3.1% (static) and
 /// 6.5% (trajectory), at 8 cells across by about 2.6% and 4%: the two converge together.
 /// (Measured with the thesis' fixed Nitsche penalty; with the scaled one, which no longer pins
-/// the grid's first cell layer, 4.1% / 8.4% and 3.05% / 4.8%, the tetrahedra stiffer.)
+/// the grid's first cell layer, 4.2% / 8.5% and 3.2% / 5.0%, the tetrahedra stiffer.)
 /// (With the linear cut-cell integrals, which lose about 8% of the bar's volume at its edges at
 /// 4 cells across, the differences were 6.7% / 9.4% and 3.5% / 5.2%; the refined integrals,
 /// `cutcell::refined_cell_integrals`, lose 0.9%, so most of the coarse static difference was

@@ -3,7 +3,8 @@
 //! of [`crate::cutcell`], "Refinement").
 
 use super::{
-    add_box_moments, cell_corner_values, cell_integrals_in, snap, snap_value, Accum, CellIntegrals, P3,
+    add_box_moments, cell_corner_values, cell_integrals_into, snap, snap_value, Accum, CellIntegrals,
+    SurfacePoint, P3,
 };
 use super::{clip_tet, KUHN_TETS};
 use crate::SdfGrid;
@@ -148,21 +149,30 @@ pub fn refined_cell_integrals(sdf: &SdfGrid, cell: [usize; 3]) -> CellIntegrals 
 /// If `s` is out of range, the cell is outside the grid or the spacing is not positive and
 /// finite.
 pub fn refined_cell_integrals_with(sdf: &SdfGrid, cell: [usize; 3], s: usize) -> CellIntegrals {
-    refined_in(sdf, cell, s, None)
+    refined_in(sdf, cell, s, None, false).0
 }
 
 /// [`refined_cell_integrals_with`] with the surface integrals restricted to the box `clip`
-/// (unit-cube coordinates of the cell) when set.
-pub(super) fn refined_in(sdf: &SdfGrid, cell: [usize; 3], s: usize, clip: Option<[P3; 2]>) -> CellIntegrals {
+/// (unit-cube coordinates of the cell) when set, and the surface quadrature points (world
+/// weights) when `points`.
+pub(super) fn refined_in(
+    sdf: &SdfGrid,
+    cell: [usize; 3],
+    s: usize,
+    clip: Option<[P3; 2]>,
+    points: bool,
+) -> (CellIntegrals, Vec<SurfacePoint>) {
     let h = sdf.spacing;
     let phi = cell_corner_values(sdf, cell);
-    let Some(v) = sub_values(sdf, cell, s) else {
-        return cell_integrals_in(&phi, h, clip);
-    };
-    let mut acc = Accum {
+    let fresh = || Accum {
         clip,
+        points: points.then(Vec::new),
         ..Default::default()
     };
+    let Some(v) = sub_values(sdf, cell, s) else {
+        return cell_integrals_into(&phi, h, fresh());
+    };
+    let mut acc = fresh();
     let size = 1.0 / s as f64;
     let at = |i: usize| i as f64 / s as f64;
     for iz in 0..s {
@@ -189,9 +199,9 @@ pub(super) fn refined_in(sdf: &SdfGrid, cell: [usize; 3], s: usize, clip: Option
     }
     // A refined cut cell keeps an inside corner, so its volume is positive; guard anyway.
     if acc.volume.iter().sum::<f64>() <= 0.0 {
-        return cell_integrals_in(&phi, h, clip);
+        return cell_integrals_into(&phi, h, fresh());
     }
-    acc.finish(h)
+    (acc.finish(h), acc.take_points(h))
 }
 
 /// The values of the refined SDF at the `(s + 1)^3` sub-nodes of cell `cell` (sub-node

@@ -50,7 +50,7 @@ pub use super::element::{rotate_block, ElementBlocks};
 use super::grid::Grid;
 use super::sim::NitscheFace;
 use gpumat::simd::{dispatch, Kernel, Simd4};
-use gpumat::{Mat3, Matrix, SparseMatrix, SparsityPattern, Vec3};
+use gpumat::{Mat3, Matrix, SparseMatrix, SparsityPattern};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -91,10 +91,11 @@ pub struct Material {
 }
 
 impl Material {
-    /// The Nitsche penalty of a cell whose Young's modulus is scaled by `se`.
+    /// The Nitsche penalty of a held cell whose Young's modulus is scaled by `se`, with the
+    /// cell's [`NitscheFace::penalty_factor`] `factor` (which scales only the part per modulus).
     #[inline(always)]
-    pub fn penalty(&self, se: f64) -> f64 {
-        self.eta + self.eta_per_modulus * (self.lambda + 2.0 * self.mu) * se
+    pub fn penalty(&self, se: f64, factor: f64) -> f64 {
+        self.eta + self.eta_per_modulus * (self.lambda + 2.0 * self.mu) * se * factor
     }
 }
 
@@ -360,15 +361,12 @@ impl Assembler {
         let Some(f) = &c.dirichlet[e] else {
             return Mat3::default();
         };
-        let n = Vec3::from_array(f.normal);
-        self.tables.nitsche_block(
-            &f.boundary,
-            n,
+        f.block(
             i,
             j,
             c.m.lambda * se,
             c.m.mu * se,
-            c.m.penalty(se),
+            c.m.penalty(se, f.penalty_factor),
         )
     }
 

@@ -90,58 +90,6 @@ impl StiffnessTables {
         }
         k
     }
-
-    /// The Nitsche consistency block `KD_{j,c}` (eq. 4.4.15): the traction `sigma(N_j e_r) n`
-    /// at corner `c`, `KD[p][r] = mu (B.n) delta_pr + mu B_p n_r + lambda n_p B_r` with
-    /// `B = grad N_j(v_c)`. (The thesis' printed entry (3,2) reads `B1 lambda n3`; the
-    /// derivation gives `B2 lambda n3`, used here.)
-    #[inline(always)]
-    pub fn traction_block(&self, j: usize, c: usize, n: Vec3<f64>, lambda: f64, mu: f64) -> Mat3<f64> {
-        let b = self.grad[c][j].to_array();
-        let n = n.to_array();
-        let bn = b[0] * n[0] + b[1] * n[1] + b[2] * n[2];
-        let f =
-            |p: usize, r: usize| mu * b[p] * n[r] + lambda * n[p] * b[r] + if p == r { mu * bn } else { 0.0 };
-        Mat3::from_rows([
-            [f(0, 0), f(0, 1), f(0, 2)],
-            [f(1, 0), f(1, 1), f(1, 2)],
-            [f(2, 0), f(2, 1), f(2, 2)],
-        ])
-    }
-
-    /// The Nitsche terms of block `(i, j)` for boundary weights `wb`, outward normal `n` and
-    /// penalty `eta` (eq. 4.4.16, 4.4.17, with the penalty entering with a positive sign so the
-    /// form stays coercive): `- wb_i KD_{j,i} - wb_j KD_{i,j}^T + delta_ij eta wb_i I`.
-    #[inline(always)]
-    pub fn nitsche_block(
-        &self,
-        wb: &[f64; 8],
-        n: Vec3<f64>,
-        i: usize,
-        j: usize,
-        lambda: f64,
-        mu: f64,
-        eta: f64,
-    ) -> Mat3<f64> {
-        let mut k = Mat3::default();
-        // `grad N_j` vanishes at corner `i` (and `grad N_i` at `j`) unless the corners are equal
-        // or neighbours along an edge: the traction blocks of the other pairs are zero and
-        // subtracting them would not change `k` (a difference from +0 is +0 or nonzero), so
-        // they are skipped
-        if (i ^ j).count_ones() > 1 {
-            return k;
-        }
-        if wb[i] != 0.0 {
-            k = k - self.traction_block(j, i, n, lambda, mu) * wb[i];
-        }
-        if wb[j] != 0.0 {
-            k = k - self.traction_block(i, j, n, lambda, mu).transpose() * wb[j];
-        }
-        if i == j {
-            k = k + Mat3::from_scalar(eta * wb[i]);
-        }
-        k
-    }
 }
 
 /// Corner positions of a cell relative to its first corner.
@@ -477,34 +425,6 @@ mod tests {
             }
         }
         assert_eq!(got[3], Mat3::identity());
-    }
-
-    /// The Nitsche blocks of corners that share no edge are skipped: the same bits as the full
-    /// formula.
-    #[test]
-    fn nitsche_blocks_skip_only_zero_terms() {
-        let mut next = values(3);
-        let t = StiffnessTables::new(0.25);
-        for _ in 0..20 {
-            let wb: [f64; 8] = std::array::from_fn(|_| if next() < -0.5 { 0.0 } else { next().abs() });
-            let n = Vec3::new(next(), next(), next());
-            let (lambda, mu, eta) = (1.0 + next().abs(), 1.0 + next().abs(), 10.0);
-            for i in 0..8 {
-                for j in 0..8 {
-                    let mut k = Mat3::default();
-                    if wb[i] != 0.0 {
-                        k = k - t.traction_block(j, i, n, lambda, mu) * wb[i];
-                    }
-                    if wb[j] != 0.0 {
-                        k = k - t.traction_block(i, j, n, lambda, mu).transpose() * wb[j];
-                    }
-                    if i == j {
-                        k = k + Mat3::from_scalar(eta * wb[i]);
-                    }
-                    assert_eq!(bits(&t.nitsche_block(&wb, n, i, j, lambda, mu, eta)), bits(&k));
-                }
-            }
-        }
     }
 
     #[test]

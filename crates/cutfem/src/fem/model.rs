@@ -166,8 +166,11 @@ pub struct Model {
 /// ratio fixed, so the clamp behaves the same in any units, for any material and resolution.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum NitschePenalty {
-    /// `eta = gamma (lambda + 2 mu) / h` with the cell's own Lame constants (the stiffness
-    /// field included); `[numerics] nitsche_gamma`, default [`DEFAULT_NITSCHE_GAMMA`]
+    /// `eta = gamma (lambda + 2 mu) |G_e| / |K_e|` with the cell's own Lame constants (the
+    /// stiffness field included), `|G_e|` its held area and `|K_e|` its inside volume (`1 / h`
+    /// for a full face of a full cell; the local inverse estimate, so that a sliver of
+    /// material under a held face stays coercive); `[numerics] nitsche_gamma`, default
+    /// [`DEFAULT_NITSCHE_GAMMA`]
     Scaled(f64),
     /// a fixed `eta` in stress per length (the thesis: 1e8); `[numerics] nitsche_eta`
     Fixed(f64),

@@ -183,22 +183,18 @@ impl Kernel for Chunk<'_> {
 
 impl CellSweep<'_> {
     /// `c_i += cu sum_j N_ij u_j` for the Nitsche blocks `N_ij` of cell `e` (Young's modulus
-    /// scaled by `sc`; only corners on a common edge have any, see
-    /// [`StiffnessTables::nitsche_block`](super::super::element::StiffnessTables::nitsche_block)).
+    /// scaled by `sc`; [`crate::fem::NitscheFace::block`]).
     #[inline(never)]
     fn add_nitsche(&self, f: &crate::fem::NitscheFace, u: &[Vec3<f64>; 8], sc: f64, c: &mut [Vec3<f64>; 8]) {
-        let n = Vec3::from_array(f.normal);
-        let (lambda, mu, eta) = (self.m.lambda * sc, self.m.mu * sc, self.m.penalty(sc));
+        let (lambda, mu, eta) = (
+            self.m.lambda * sc,
+            self.m.mu * sc,
+            self.m.penalty(sc, f.penalty_factor),
+        );
         for (i, ci_out) in c.iter_mut().enumerate() {
             let mut acc = Vec3::default();
             for (j, uj) in u.iter().enumerate() {
-                if (i ^ j).count_ones() <= 1 {
-                    let nb = self
-                        .asm
-                        .tables()
-                        .nitsche_block(&f.boundary, n, i, j, lambda, mu, eta);
-                    acc = acc + nb * *uj;
-                }
+                acc = acc + f.block(i, j, lambda, mu, eta) * *uj;
             }
             *ci_out = *ci_out + acc * self.cu;
         }

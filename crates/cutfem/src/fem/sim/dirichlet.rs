@@ -1,18 +1,85 @@
-//! The held surface of the Dirichlet boxes (`[[dirichlet]]`): per cell, the Nitsche weights
-//! of eq. 4.2.3 over the part of the body's surface inside a box, clipped exactly.
+//! The held surface of the Dirichlet boxes (`[[dirichlet]]`): per cell, the Nitsche terms
+//! (eq. 4.4.13-4.4.17) over the part of the body's surface inside a box, clipped exactly.
+//!
+//! For the test function `v = N_i e_p` and the trial function `u = N_j e_r`, the Nitsche form
+//! `-int v . sigma(u) n - int sigma(v) n . u + eta int u . v` over the held surface `G` gives
+//! the block
+//!
+//! `B_ij = -T(G_ij) - T(G_ji)^T + eta P_ij I`, with `P_ij = int N_i N_j`,
+//! `G_ij = int N_i grad N_j (x) n` and `T(G)_pr = mu G_pr + lambda G_rp + delta_pr mu tr G`
+//!
+//! (`sigma(N_j e_r) n` has components `mu (d_p N_j n_r + delta_pr grad N_j . n) + lambda n_p
+//! d_r N_j`). The integrals use the surface quadrature points of the held part
+//! ([`crate::cutcell::refined_surface_in_box`]). The thesis evaluates these terms with nodal
+//! weights `w_b(e, i)` (eq. 4.2.3) at the corners; that lumping puts a weight proportional to
+//! the held area on corners a whole cell away from it, so a sliver of held surface (a strip of
+//! side face caught by a box a little wider than the face it holds) pinned the cell's far
+//! corners: consistent quadrature weighs them by `N_i N_j`, which vanishes there.
+
+use std::sync::Arc;
+
+use gpumat::{Mat3, Vec3};
 
 use crate::error::Error;
 use crate::fem::grid::Grid;
 use crate::fem::model::Model;
 
-/// The part of a cell's surface held by the Dirichlet boxes: its Nitsche weights `w_b(e, i)`
-/// (eq. 4.2.3 over the held part only) and mean outward normal.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// The part of a cell's surface held by the Dirichlet boxes and its Nitsche integrals.
+#[derive(Clone, Debug, PartialEq)]
 pub struct NitscheFace {
-    /// `int N_i` over the held surface in the cell, world units
+    /// `int N_i` over the held surface in the cell, world units (`w_b` of eq. 4.2.3 over the
+    /// held part)
     pub boundary: [f64; 8],
     /// the area-weighted mean unit outward normal of the held surface
     pub normal: [f64; 3],
+    /// `h |G_e| / |K_e|`: the held area over the cell's inside volume, relative to a full
+    /// face of a full cell; the scaled penalty of the cell is multiplied by it
+    /// ([`crate::fem::NitschePenalty`], module docs)
+    pub penalty_factor: f64,
+    /// the consistent integrals `P_ij` and `G_ij` (module docs)
+    terms: Arc<NitscheTerms>,
+}
+
+#[derive(Debug, PartialEq)]
+struct NitscheTerms {
+    /// `P_ij = int N_i N_j`
+    mass: [[f64; 8]; 8],
+    /// `G_ij = int N_i grad N_j (x) n`, row-major 3x3 (`[p][r] = int N_i d_p N_j n_r`)
+    traction: [[Mat3<f64>; 8]; 8],
+}
+
+impl NitscheFace {
+    /// The Nitsche block `B_ij` (module docs) for Lame constants `lambda, mu` and penalty `eta`.
+    #[inline]
+    pub fn block(&self, i: usize, j: usize, lambda: f64, mu: f64, eta: f64) -> Mat3<f64> {
+        let t = &self.terms;
+        let k = traction(&t.traction[i][j], lambda, mu) + traction(&t.traction[j][i], lambda, mu).transpose();
+        Mat3::from_scalar(eta * t.mass[i][j]) - k
+    }
+}
+
+/// `T(G)_pr = mu G_pr + lambda G_rp + delta_pr mu tr G`.
+#[inline(always)]
+fn traction(g: &Mat3<f64>, lambda: f64, mu: f64) -> Mat3<f64> {
+    let tr = g.trace();
+    *g * mu + g.transpose() * lambda + Mat3::from_scalar(mu * tr)
+}
+
+/// The trilinear basis values and world gradients at the unit-cube point `x` of a cell of
+/// size `h`.
+fn basis_at(x: [f64; 3], h: f64) -> ([f64; 8], [Vec3<f64>; 8]) {
+    let w = x.map(|t| [1.0 - t, t]);
+    let dw = [-1.0 / h, 1.0 / h];
+    let n = std::array::from_fn(|i| w[0][i & 1] * w[1][(i >> 1) & 1] * w[2][(i >> 2) & 1]);
+    let g = std::array::from_fn(|i| {
+        let (a, b, c) = (i & 1, (i >> 1) & 1, (i >> 2) & 1);
+        Vec3::new(
+            dw[a] * w[1][b] * w[2][c],
+            w[0][a] * dw[b] * w[2][c],
+            w[0][a] * w[1][b] * dw[c],
+        )
+    });
+    (n, g)
 }
 
 /// The held surface of every cell: the part of the body's surface inside a Dirichlet box
@@ -22,7 +89,7 @@ pub struct NitscheFace {
 /// holds no part of the body's surface.
 pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheFace>>, Error> {
     let h = grid.h();
-    let mut faces: Vec<Option<NitscheFace>> = vec![None; grid.cells.len()];
+    let mut sums: Vec<Option<(NitscheFace, NitscheTerms)>> = (0..grid.cells.len()).map(|_| None).collect();
     for (bi, bx) in model.dirichlet.iter().enumerate() {
         let mut any = false;
         for (e, c) in grid.cells.iter().enumerate() {
@@ -33,21 +100,45 @@ pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheF
             if (0..3).any(|d| lo[d] > bx.max[d] || lo[d] + h < bx.min[d]) {
                 continue;
             }
-            let part = crate::cutcell::refined_boundary_in_box(&grid.sdf, c.coord, bx.min, bx.max);
+            let (part, points) = crate::cutcell::refined_surface_in_box(&grid.sdf, c.coord, bx.min, bx.max);
             if part.area <= 0.0 {
                 continue;
             }
             any = true;
-            let f = faces[e].get_or_insert(NitscheFace {
-                boundary: [0.0; 8],
-                normal: [0.0; 3],
+            let f = sums[e].get_or_insert_with(|| {
+                (
+                    NitscheFace {
+                        boundary: [0.0; 8],
+                        normal: [0.0; 3],
+                        penalty_factor: 0.0,
+                        terms: Arc::new(NitscheTerms {
+                            mass: [[0.0; 8]; 8],
+                            traction: [[Mat3::default(); 8]; 8],
+                        }),
+                    },
+                    NitscheTerms {
+                        mass: [[0.0; 8]; 8],
+                        traction: [[Mat3::default(); 8]; 8],
+                    },
+                )
             });
             for i in 0..8 {
-                f.boundary[i] += part.boundary[i];
+                f.0.boundary[i] += part.boundary[i];
             }
             for d in 0..3 {
                 // area-weighted sum for now, normalized below
-                f.normal[d] += part.area * part.normal[d];
+                f.0.normal[d] += part.area * part.normal[d];
+            }
+            for q in &points {
+                let (nv, g) = basis_at(q.x, h);
+                let n = Vec3::from_array(q.normal);
+                for i in 0..8 {
+                    let wi = q.weight * nv[i];
+                    for j in 0..8 {
+                        f.1.mass[i][j] += wi * nv[j];
+                        f.1.traction[i][j] = f.1.traction[i][j] + g[j].outer(n) * wi;
+                    }
+                }
             }
         }
         if !any {
@@ -57,11 +148,21 @@ pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheF
             )));
         }
     }
-    for f in faces.iter_mut().flatten() {
-        let len = f.normal.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if len > 0.0 {
-            f.normal = f.normal.map(|x| x / len);
-        }
-    }
-    Ok(faces)
+    Ok(sums
+        .into_iter()
+        .zip(&grid.cells)
+        .map(|(s, c)| {
+            s.map(|(mut f, terms)| {
+                let volume: f64 = c.integrals.volume.iter().sum();
+                let area: f64 = f.boundary.iter().sum();
+                f.penalty_factor = if volume > 0.0 { h * area / volume } else { 0.0 };
+                let len = f.normal.iter().map(|x| x * x).sum::<f64>().sqrt();
+                if len > 0.0 {
+                    f.normal = f.normal.map(|x| x / len);
+                }
+                f.terms = Arc::new(terms);
+                f
+            })
+        })
+        .collect())
 }
