@@ -106,7 +106,7 @@ CASES = {
         clamp=None,
         # reference contact: frictionless penalty pressure p = k * penetration, k below
         ground=dict(normal=[0.0, 1.0, 0.0], height=0.0, penalty=4.0e6,
-                    scene_stiffness=1.0e4, scene_softness=100.0, cap=0.04),
+                    scene_stiffness=1.0e4, scene_softness=1000.0, cap=0.04),
         dt=0.01, steps=60, obs_every=1, points=200,
         sigma=0.01, seed=20261203,
         # isoparametric P2 tets: ball refined 3 times, then longest-edge bisection near

@@ -10,6 +10,7 @@
 //! which are counted and timed apart (seconds per step = all factorization seconds / steps).
 
 use cutfem::fem::advect::Diffusion;
+use cutfem::fem::element::Element;
 use cutfem::fem::tet::TetSimulation;
 use cutfem::fem::{Aabb, Grid, Ground, Model, Preconditioner, Simulation};
 use cutfem::shapes::Shape;
@@ -94,6 +95,14 @@ pub struct CuboidRow {
     pub grid_step_s: f64,
     /// grid assembly / grid step (target: at most 0.05)
     pub assembly_fraction: f64,
+    /// grid: seconds per step (`Simulation::step`, no advection) with the incompatible element
+    /// ([`Element::Incompatible`]), measured alternately with the thesis' element (faster of
+    /// two runs each)
+    pub incompatible_step_s: f64,
+    /// grid: the same with the thesis' element ([`Element::Trilinear`])
+    pub trilinear_step_s: f64,
+    /// `incompatible_step_s / trilinear_step_s` (issue 12 target: at most 1.3)
+    pub incompatible_cost_ratio: f64,
     /// tet assembly / grid assembly (target: at least 2; thesis 2-3)
     pub grid_vs_tet_assembly_speedup: f64,
     /// thesis (GTX 1060): grid nodes
@@ -209,6 +218,32 @@ fn solve_stats(
     })
 }
 
+/// Seconds per grid step (`Simulation::step` alone) of the incompatible element and of the
+/// thesis' element on the same grid and model, run alternately (two runs each, the faster kept) so the
+/// machine's load hits both alike.
+fn element_costs(grid: &Grid, model: &Model, steps: usize, cg_tolerance: f64) -> Result<(f64, f64), String> {
+    let mut best = [f64::INFINITY; 2];
+    for _ in 0..2 {
+        for (k, element) in [Element::Incompatible, Element::Trilinear]
+            .into_iter()
+            .enumerate()
+        {
+            let m = Model {
+                element,
+                ..model.clone()
+            };
+            let mut sim = Simulation::new(grid.clone(), m).map_err(|e| e.to_string())?;
+            sim.solver.cg.tolerance = cg_tolerance;
+            let t = Instant::now();
+            for _ in 0..steps {
+                sim.step().map_err(|e| format!("{}: {e}", element.name()))?;
+            }
+            best[k] = best[k].min(t.elapsed().as_secs_f64() / steps as f64);
+        }
+    }
+    Ok((best[0], best[1]))
+}
+
 /// Measures one row.
 pub fn row(r: u32, ground: bool, steps: usize, cg_tolerance: f64) -> Result<CuboidRow, String> {
     let shape = Shape::Box {
@@ -263,6 +298,7 @@ pub fn row(r: u32, ground: bool, steps: usize, cg_tolerance: f64) -> Result<Cubo
         ts += info.solve_s;
         ti += info.iterations as f64;
     }
+    let (incompatible_step_s, trilinear_step_s) = element_costs(&grid, &model, steps, cg_tolerance)?;
     let n = steps as f64;
     let table = if ground { &THESIS_B6 } else { &THESIS_B5 };
     let th = table.iter().find(|t| t.0 == r);
@@ -305,6 +341,9 @@ pub fn row(r: u32, ground: bool, steps: usize, cg_tolerance: f64) -> Result<Cubo
         grid_advection_s: gadv / n,
         grid_step_s: gstep / n,
         assembly_fraction: ga / gstep,
+        incompatible_step_s,
+        trilinear_step_s,
+        incompatible_cost_ratio: incompatible_step_s / trilinear_step_s,
         grid_vs_tet_assembly_speedup: ta / ga,
         thesis_grid_free_nodes: th.map(|t| t.1),
         thesis_tet_elements: th.map(|t| t.2),
@@ -386,5 +425,8 @@ pub fn columns() -> Vec<crate::report::Col> {
         col("advect ms", "grid_advection_s", Fmt::SecondsAsMs),
         col("grid step ms", "grid_step_s", Fmt::SecondsAsMs),
         col("asm / step", "assembly_fraction", Fmt::Percent),
+        col("step ms incompatible", "incompatible_step_s", Fmt::SecondsAsMs),
+        col("step ms trilinear", "trilinear_step_s", Fmt::SecondsAsMs),
+        col("incompatible / trilinear", "incompatible_cost_ratio", Fmt::Ratio),
     ]
 }

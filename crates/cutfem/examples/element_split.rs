@@ -9,7 +9,7 @@
 //! `cargo run --release -p cutfem --example element_split [h ...]`
 
 use cutfem::fem::element::Element;
-use cutfem::fem::{Aabb, Grid, Model, Simulation};
+use cutfem::fem::{Aabb, Grid, Model, NitscheQuadrature, Simulation};
 use cutfem::shapes::Shape;
 use gpumat::Vec3;
 
@@ -33,6 +33,8 @@ fn run(h: f64, element: Element, shift: f64, clamp_cells: f64, nu: f64) -> f64 {
         gravity: Vec3::new(0.0, -10.0, 0.0),
         corotation: false,
         element,
+        nitsche_quadrature: NitscheQuadrature::Consistent,
+        nitsche: NitscheQuadrature::Consistent.default_penalty(),
         dirichlet: vec![Aabb {
             min: [-1.0, -1.0, -1.0],
             max: [clamp_cells * h, 1.0, 1.0],

@@ -311,7 +311,9 @@ impl Scene {
                 }
             }
         }
-        self.numerics.nitsche().map_err(|e| Error::format(path, e))?;
+        self.numerics
+            .nitsche_penalty()
+            .map_err(|e| Error::format(path, e))?;
         self.to_model()
             .validate()
             .map_err(|e| Error::format(path, e.to_string()))
@@ -389,7 +391,11 @@ impl Scene {
             dt: self.time.dt,
             theta: self.time.theta,
             // both keys given is refused by `check`
-            nitsche: self.numerics.nitsche().unwrap_or_default(),
+            nitsche_quadrature: self.numerics.nitsche,
+            nitsche: self
+                .numerics
+                .nitsche_penalty()
+                .unwrap_or(self.numerics.nitsche.default_penalty()),
             element: self.numerics.element,
             dirichlet: self
                 .dirichlet

@@ -11,7 +11,7 @@ mod fem_common;
 use fem_common::*;
 
 use cutfem::fem::element::Element;
-use cutfem::fem::{Aabb, Model, Simulation};
+use cutfem::fem::{Aabb, Model, NitscheQuadrature, Simulation};
 use gpumat::Vec3;
 
 const L: f64 = 2.0;
@@ -36,6 +36,8 @@ const END: Aabb = Aabb {
 };
 
 /// The beam's linear model under gravity with `element`, held by `dirichlet`.
+/// The beam's model, clamped with the consistent Nitsche terms and their scaled penalty
+/// (`docs/simulation.md`, "Nitsche").
 fn beam(element: Element, dirichlet: Vec<Aabb>) -> Model {
     Model {
         young: E,
@@ -45,6 +47,8 @@ fn beam(element: Element, dirichlet: Vec<Aabb>) -> Model {
         corotation: false,
         element,
         dirichlet,
+        nitsche_quadrature: NitscheQuadrature::Consistent,
+        nitsche: NitscheQuadrature::Consistent.default_penalty(),
         ..Model::default()
     }
 }

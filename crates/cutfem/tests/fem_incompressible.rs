@@ -18,7 +18,7 @@ mod fem_common;
 use fem_common::reference;
 
 use cutfem::fem::element::Element;
-use cutfem::fem::{Aabb, ExternalForce, Grid, Model, NitschePenalty, Simulation};
+use cutfem::fem::{Aabb, ExternalForce, Grid, Model, NitschePenalty, NitscheQuadrature, Simulation};
 use cutfem::shapes::Shape;
 use gpumat::Vec3;
 use std::sync::Arc;
@@ -99,6 +99,7 @@ fn error(n: usize, nu: f64, element: Element) -> f64 {
         gravity: Vec3::splat(0.0),
         corotation: false,
         element,
+        nitsche_quadrature: NitscheQuadrature::Consistent,
         nitsche: NitschePenalty::Fixed(1e4),
         dirichlet: vec![Aabb {
             min: [-1.0; 3],

@@ -136,6 +136,8 @@ pub struct Model {
     pub corotation: bool,
     /// regions held at zero displacement (Nitsche)
     pub dirichlet: Vec<Aabb>,
+    /// how the Nitsche terms of the held surface are integrated ([`NitscheQuadrature`])
+    pub nitsche_quadrature: NitscheQuadrature,
     /// the Nitsche penalty of the held surface ([`NitschePenalty`])
     pub nitsche: NitschePenalty,
     /// the grid element (`[numerics] element`)
@@ -181,9 +183,27 @@ pub enum NitschePenalty {
 /// positive definite (both elements, `nu` up to 0.49).
 pub const DEFAULT_NITSCHE_GAMMA: f64 = 20.0;
 
-impl Default for NitschePenalty {
-    fn default() -> Self {
-        Self::Scaled(DEFAULT_NITSCHE_GAMMA)
+/// How the Nitsche terms of the held surface are integrated (`[numerics] nitsche`; the
+/// formulas in [`crate::fem::sim::dirichlet`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NitscheQuadrature {
+    /// the thesis' (eq. 4.4.15-4.4.17): nodal weights `w_b(e, i)`, the traction at the
+    /// corners and the cell's mean normal; its penalty is the fixed 1e8 unless given
+    #[default]
+    Thesis,
+    /// consistent quadrature over the held surface; its penalty is the scaled one
+    /// ([`NitschePenalty::Scaled`] with [`DEFAULT_NITSCHE_GAMMA`]) unless given
+    Consistent,
+}
+
+impl NitscheQuadrature {
+    /// The penalty used when the scene gives none.
+    pub fn default_penalty(self) -> NitschePenalty {
+        match self {
+            Self::Thesis => NitschePenalty::Fixed(1e8),
+            Self::Consistent => NitschePenalty::Scaled(DEFAULT_NITSCHE_GAMMA),
+        }
     }
 }
 
@@ -210,7 +230,8 @@ impl Default for Model {
             ground: None,
             corotation: true,
             dirichlet: Vec::new(),
-            nitsche: NitschePenalty::default(),
+            nitsche_quadrature: NitscheQuadrature::default(),
+            nitsche: NitscheQuadrature::default().default_penalty(),
             element: super::element::Element::default(),
             initial_velocity: Vec3::default(),
             initial_angular_velocity: Vec3::default(),

@@ -6,11 +6,16 @@ use serde::Deserialize;
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct NumericsSection {
+    /// how the Nitsche terms are integrated: "thesis" (default) or "consistent"
+    /// ([`crate::fem::NitscheQuadrature`])
+    #[serde(default)]
+    pub nitsche: crate::fem::NitscheQuadrature,
     /// a fixed Nitsche penalty eta (the thesis: 1e8); excludes `nitsche_gamma`
     #[serde(default)]
     pub nitsche_eta: Option<f64>,
     /// the Nitsche penalty relative to the material and the cell size, `eta = gamma (lambda +
-    /// 2 mu) / h` ([`crate::fem::NitschePenalty`]); default 20 when neither is given
+    /// 2 mu) |G_e| / |K_e|` ([`crate::fem::NitschePenalty`]); when neither is given, the
+    /// default of `nitsche` ([`crate::fem::NitscheQuadrature::default_penalty`])
     #[serde(default)]
     pub nitsche_gamma: Option<f64>,
     /// relative CG tolerance
@@ -27,7 +32,7 @@ pub struct NumericsSection {
     /// or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
     pub preconditioner: PreconditionerName,
-    /// the grid element: "trilinear" (the thesis', default), "incompatible",
+    /// the grid element: "incompatible" (default), "trilinear" (the thesis'),
     /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
     #[serde(default)]
     pub element: crate::fem::element::Element,
@@ -75,6 +80,7 @@ fn cg_max() -> usize {
 impl Default for NumericsSection {
     fn default() -> Self {
         Self {
+            nitsche: Default::default(),
             nitsche_eta: None,
             nitsche_gamma: None,
             cg_tolerance: cg_tol(),
@@ -87,8 +93,9 @@ impl Default for NumericsSection {
 }
 
 impl NumericsSection {
-    /// The Nitsche penalty: `nitsche_eta` (fixed) or `nitsche_gamma` (scaled), not both.
-    pub fn nitsche(&self) -> Result<crate::fem::NitschePenalty, String> {
+    /// The Nitsche penalty: `nitsche_eta` (fixed) or `nitsche_gamma` (scaled), not both; else
+    /// the default of `nitsche`.
+    pub fn nitsche_penalty(&self) -> Result<crate::fem::NitschePenalty, String> {
         use crate::fem::NitschePenalty;
         match (self.nitsche_eta, self.nitsche_gamma) {
             (Some(_), Some(_)) => Err(
@@ -98,7 +105,7 @@ impl NumericsSection {
             ),
             (Some(eta), None) => Ok(NitschePenalty::Fixed(eta)),
             (None, Some(g)) => Ok(NitschePenalty::Scaled(g)),
-            (None, None) => Ok(NitschePenalty::default()),
+            (None, None) => Ok(self.nitsche.default_penalty()),
         }
     }
 }

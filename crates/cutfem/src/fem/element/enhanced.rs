@@ -1,5 +1,5 @@
-//! The grid element's stiffness (`[numerics] element`): the thesis' trilinear hexahedron, and
-//! the default, the trilinear hexahedron with incompatible modes (Wilson et al. 1973, in the
+//! The grid element's stiffness (`[numerics] element`): the thesis' trilinear hexahedron (still
+//! the default, `docs/simulation.md`, "Element"), and the trilinear hexahedron with incompatible modes (Wilson et al. 1973, in the
 //! mean-free form of Taylor, Beresford & Wilson 1976, "QM6"), both with exact or corner-rule
 //! integration over the cut part of the cell.
 //!
@@ -75,8 +75,7 @@ use gpumat::{Mat3, Vec3};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Element {
-    /// the thesis' element: trilinear, corner rule (sec. 4.4.1.1); the default until the
-    /// diagnosis is validated with the incompatible element (`docs/simulation.md`, "Element")
+    /// the thesis' element: trilinear, corner rule (sec. 4.4.1.1)
     #[default]
     Trilinear,
     /// trilinear, exact integration over the cut part

@@ -9,12 +9,18 @@
 //! `G_ij = int N_i grad N_j (x) n` and `T(G)_pr = mu G_pr + lambda G_rp + delta_pr mu tr G`
 //!
 //! (`sigma(N_j e_r) n` has components `mu (d_p N_j n_r + delta_pr grad N_j . n) + lambda n_p
-//! d_r N_j`). The integrals use the surface quadrature points of the held part
-//! ([`crate::cutcell::refined_surface_in_box`]). The thesis evaluates these terms with nodal
-//! weights `w_b(e, i)` (eq. 4.2.3) at the corners; that lumping puts a weight proportional to
-//! the held area on corners a whole cell away from it, so a sliver of held surface (a strip of
-//! side face caught by a box a little wider than the face it holds) pinned the cell's far
-//! corners: consistent quadrature weighs them by `N_i N_j`, which vanishes there.
+//! d_r N_j`). Two quadratures ([`NitscheQuadrature`], `[numerics] nitsche`):
+//!
+//! - `thesis` (default; eq. 4.4.15-4.4.17): nodal, `P_ij = delta_ij w_b(e, i)` and
+//!   `G_ij = w_b(e, i) grad N_j(v_i) (x) n` with the nodal weights `w_b` of eq. 4.2.3 over the
+//!   held part, the basis gradient at corner `i` and the cell's mean normal `n` (`grad N_j(v_i)`
+//!   vanishes unless `i` and `j` are equal or share an edge);
+//! - `consistent`: the integrals over the surface quadrature points of the held part
+//!   ([`crate::cutcell::refined_surface_in_box`]), each with its own normal. The nodal rule puts
+//!   a weight proportional to the held area on corners a whole cell away from it, so a sliver
+//!   of held surface (a strip of side face caught by a box a little wider than the face it
+//!   holds) pins the cell's far corners; consistent quadrature weighs them by `N_i N_j`, which
+//!   vanishes there (`docs/simulation.md`, "Nitsche").
 
 use std::sync::Arc;
 
@@ -22,7 +28,7 @@ use gpumat::{Mat3, Vec3};
 
 use crate::error::Error;
 use crate::fem::grid::Grid;
-use crate::fem::model::Model;
+use crate::fem::model::{Model, NitscheQuadrature};
 
 /// The part of a cell's surface held by the Dirichlet boxes and its Nitsche integrals.
 #[derive(Clone, Debug, PartialEq)]
@@ -63,6 +69,20 @@ impl NitscheFace {
 fn traction(g: &Mat3<f64>, lambda: f64, mu: f64) -> Mat3<f64> {
     let tr = g.trace();
     *g * mu + g.transpose() * lambda + Mat3::from_scalar(mu * tr)
+}
+
+/// The thesis' nodal terms (module docs): `P_ij = delta_ij w_b(e, i)`, `G_ij = w_b(e, i)
+/// grad N_j(v_i) (x) n`.
+fn nodal_terms(f: &NitscheFace, h: f64, terms: &mut NitscheTerms) {
+    let n = Vec3::from_array(f.normal);
+    for i in 0..8 {
+        let corner = [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64];
+        let (_, g) = basis_at(corner, h);
+        for j in 0..8 {
+            terms.mass[i][j] = if i == j { f.boundary[i] } else { 0.0 };
+            terms.traction[i][j] = g[j].outer(n) * f.boundary[i];
+        }
+    }
 }
 
 /// The trilinear basis values and world gradients at the unit-cube point `x` of a cell of
@@ -129,7 +149,8 @@ pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheF
                 // area-weighted sum for now, normalized below
                 f.0.normal[d] += part.area * part.normal[d];
             }
-            for q in &points {
+            let consistent = model.nitsche_quadrature == NitscheQuadrature::Consistent;
+            for q in points.iter().filter(|_| consistent) {
                 let (nv, g) = basis_at(q.x, h);
                 let n = Vec3::from_array(q.normal);
                 for i in 0..8 {
@@ -152,13 +173,18 @@ pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheF
         .into_iter()
         .zip(&grid.cells)
         .map(|(s, c)| {
-            s.map(|(mut f, terms)| {
-                let volume: f64 = c.integrals.volume.iter().sum();
+            // a cell with held surface but no material has nothing to hold (and no stiffness
+            // to keep its consistency terms coercive)
+            let volume: f64 = c.integrals.volume.iter().sum();
+            s.filter(|_| volume > 0.0).map(|(mut f, mut terms)| {
                 let area: f64 = f.boundary.iter().sum();
-                f.penalty_factor = if volume > 0.0 { h * area / volume } else { 0.0 };
+                f.penalty_factor = h * area / volume;
                 let len = f.normal.iter().map(|x| x * x).sum::<f64>().sqrt();
                 if len > 0.0 {
                     f.normal = f.normal.map(|x| x / len);
+                }
+                if model.nitsche_quadrature == NitscheQuadrature::Thesis {
+                    nodal_terms(&f, h, &mut terms);
                 }
                 f.terms = Arc::new(terms);
                 f
