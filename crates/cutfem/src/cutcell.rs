@@ -138,7 +138,7 @@ mod boxed;
 mod quadrature;
 mod refine;
 
-pub use boxed::{refined_boundary_in_box, refined_surface_in_box};
+pub use boxed::refined_surface_in_box;
 pub(crate) use quadrature::add_box_moments;
 use quadrature::{add_tet, TRI_RULE};
 

@@ -283,12 +283,13 @@ fn element_blocks_share_sets_of_cells_cut_alike() {
     let grid = cutfem::fem::Grid::new(shape.to_sdf(16.0, 2).unwrap()).unwrap();
     let sim = Simulation::new(grid, Model::default()).unwrap();
     let (lambda, mu) = sim.model.lame();
+    let (eta, eta_per_modulus) = sim.model.nitsche.terms(sim.grid.h());
     for element in Element::ALL {
         let m = Material {
             lambda,
             mu,
-            eta: sim.model.nitsche.terms(sim.grid.h()).0,
-            eta_per_modulus: sim.model.nitsche.terms(sim.grid.h()).1,
+            eta,
+            eta_per_modulus,
             element,
         };
         let blocks = sim.assembler.element_blocks(&sim.grid, &m);

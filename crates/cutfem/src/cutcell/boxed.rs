@@ -51,31 +51,17 @@ pub(super) fn clip_triangle(v: [P3; 3], b: &[P3; 2], mut f: impl FnMut([P3; 3]))
 
 /// The surface weights `w_b`, area and mean normal of cell `cell` of `sdf` over the part of
 /// its surface inside the world box `[lo, hi]` (the refined integration of
-/// [`super::refined_cell_integrals`]; the volume fields are those of the whole cell).
-pub fn refined_boundary_in_box(sdf: &SdfGrid, cell: [usize; 3], lo: [f64; 3], hi: [f64; 3]) -> CellIntegrals {
-    in_box(sdf, cell, lo, hi, false).0
-}
-
-/// [`refined_boundary_in_box`] and the quadrature points of that part of the surface (the
-/// degree-4 rule on each clipped triangle; positions on the cell's unit cube, world weights):
-/// the consistent Nitsche terms of the held surface ([`crate::fem::NitscheFace`]).
+/// [`super::refined_cell_integrals`]; the volume fields are those of the whole cell), and the
+/// quadrature points of that part of the surface (the degree-4 rule on each clipped triangle;
+/// positions on the cell's unit cube, world weights): the Nitsche terms of the held surface
+/// ([`crate::fem::NitscheFace`]).
 pub fn refined_surface_in_box(
     sdf: &SdfGrid,
     cell: [usize; 3],
     lo: [f64; 3],
     hi: [f64; 3],
 ) -> (CellIntegrals, Vec<SurfacePoint>) {
-    in_box(sdf, cell, lo, hi, true)
-}
-
-fn in_box(
-    sdf: &SdfGrid,
-    cell: [usize; 3],
-    lo: [f64; 3],
-    hi: [f64; 3],
-    points: bool,
-) -> (CellIntegrals, Vec<SurfacePoint>) {
     let h = sdf.spacing;
     let unit = |p: [f64; 3]| -> P3 { std::array::from_fn(|d| (p[d] - sdf.origin[d]) / h - cell[d] as f64) };
-    refined_in(sdf, cell, SUBDIVISIONS, Some([unit(lo), unit(hi)]), points)
+    refined_in(sdf, cell, SUBDIVISIONS, Some([unit(lo), unit(hi)]), true)
 }

@@ -215,7 +215,8 @@ impl Simulation {
         self.mass.as_slice().iter().sum()
     }
 
-    fn material(&self) -> Material {
+    /// The material constants of an assembly: Lame constants, Nitsche penalty, element.
+    pub(crate) fn material(&self) -> Material {
         let (lambda, mu) = self.model.lame();
         let (eta, eta_per_modulus) = self.model.nitsche.terms(self.grid.h());
         Material {

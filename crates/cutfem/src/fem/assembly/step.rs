@@ -335,14 +335,7 @@ mod tests {
             }
 
             let s = &one;
-            let (lambda, mu) = s.model.lame();
-            let m = crate::fem::Material {
-                lambda,
-                mu,
-                eta: s.model.nitsche.terms(s.grid.h()).0,
-                eta_per_modulus: s.model.nitsche.terms(s.grid.h()).1,
-                element: s.model.element,
-            };
+            let m = s.material();
             let scale = s.model.stiffness_scale.as_deref();
             let mut k = SparseMatrix::zeros(s.assembler.pattern().clone(), 1);
             let blocks = s.element_blocks().unwrap();

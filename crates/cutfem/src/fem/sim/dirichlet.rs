@@ -27,6 +27,7 @@ use std::sync::Arc;
 use gpumat::{Mat3, Vec3};
 
 use crate::error::Error;
+use crate::fem::element::basis_gradient;
 use crate::fem::grid::Grid;
 use crate::fem::model::{Model, NitscheQuadrature};
 
@@ -46,7 +47,7 @@ pub struct NitscheFace {
     terms: Arc<NitscheTerms>,
 }
 
-#[derive(Debug, PartialEq)]
+#[derive(Debug, Default, PartialEq)]
 struct NitscheTerms {
     /// `P_ij = int N_i N_j`
     mass: [[f64; 8]; 8],
@@ -76,11 +77,9 @@ fn traction(g: &Mat3<f64>, lambda: f64, mu: f64) -> Mat3<f64> {
 fn nodal_terms(f: &NitscheFace, h: f64, terms: &mut NitscheTerms) {
     let n = Vec3::from_array(f.normal);
     for i in 0..8 {
-        let corner = [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64];
-        let (_, g) = basis_at(corner, h);
         for j in 0..8 {
             terms.mass[i][j] = if i == j { f.boundary[i] } else { 0.0 };
-            terms.traction[i][j] = g[j].outer(n) * f.boundary[i];
+            terms.traction[i][j] = basis_gradient(j, i, h).outer(n) * f.boundary[i];
         }
     }
 }
@@ -104,7 +103,7 @@ fn basis_at(x: [f64; 3], h: f64) -> ([f64; 8], [Vec3<f64>; 8]) {
 
 /// The held surface of every cell: the part of the body's surface inside a Dirichlet box
 /// (`[[dirichlet]]`: the material inside the box is held), clipped to the box exactly
-/// ([`crate::cutcell::refined_boundary_in_box`]), so the held region does not depend on the
+/// ([`crate::cutcell::refined_surface_in_box`]), so the held region does not depend on the
 /// resolution. Overlapping boxes count their common surface once per box. Errors when a box
 /// holds no part of the body's surface.
 pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheFace>>, Error> {
@@ -125,22 +124,15 @@ pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheF
                 continue;
             }
             any = true;
+            // the face's sums, its terms accumulated beside it and moved in at the end
             let f = sums[e].get_or_insert_with(|| {
-                (
-                    NitscheFace {
-                        boundary: [0.0; 8],
-                        normal: [0.0; 3],
-                        penalty_factor: 0.0,
-                        terms: Arc::new(NitscheTerms {
-                            mass: [[0.0; 8]; 8],
-                            traction: [[Mat3::default(); 8]; 8],
-                        }),
-                    },
-                    NitscheTerms {
-                        mass: [[0.0; 8]; 8],
-                        traction: [[Mat3::default(); 8]; 8],
-                    },
-                )
+                let face = NitscheFace {
+                    boundary: [0.0; 8],
+                    normal: [0.0; 3],
+                    penalty_factor: 0.0,
+                    terms: Arc::default(),
+                };
+                (face, NitscheTerms::default())
             });
             for i in 0..8 {
                 f.0.boundary[i] += part.boundary[i];
