@@ -435,3 +435,67 @@ fn start_at_the_minimum_converges_immediately() {
         assert_eq!((info.iterations, info.evaluations), (0, 1));
     }
 }
+
+/// `r = [x0 - 2, 3 atan(x1 - 1/2)]` in a box. From `x1 = 10` the Gauss-Newton step in `x1` is
+/// about -130 (the arctangent is flat there): far beyond any lower bound of `x1`.
+struct Boxed {
+    bounds: Vec<(f64, f64)>,
+}
+
+fn atan_residuals(x: &[f64]) -> Residuals {
+    let t = x[1] - 0.5;
+    Ok((
+        vec![x[0] - 2.0, 3.0 * t.atan()],
+        vec![1.0, 0.0, 0.0, 3.0 / (1.0 + t * t)],
+    ))
+}
+
+impl Objective for Boxed {
+    fn eval(&mut self, x: &[f64]) -> Result<(f64, Vec<f64>), EvalError> {
+        LeastSquaresFn(atan_residuals).eval(x)
+    }
+    fn bounds(&self) -> Option<&[(f64, f64)]> {
+        Some(&self.bounds)
+    }
+}
+
+impl GaussNewtonObjective for Boxed {
+    fn eval_gn(&mut self, x: &[f64]) -> Result<GnEval, EvalError> {
+        assert!(
+            x.iter().zip(&self.bounds).all(|(v, (lo, hi))| lo <= v && v <= hi),
+            "evaluated outside the box: {x:?}"
+        );
+        LeastSquaresFn(atan_residuals).eval_gn(x)
+    }
+}
+
+/// Levenberg-Marquardt in a box: a long first step lands on the bound, and the coordinate
+/// comes back to the interior optimum; with the optimum beyond the bound it stays on the bound
+/// while the free coordinate converges. No point outside the box is ever evaluated.
+#[test]
+fn levenberg_marquardt_stays_in_the_box_and_leaves_a_bound() {
+    let mut f = Boxed {
+        bounds: vec![(-5.0, 5.0), (-2.0, 20.0)],
+    };
+    let (x, info) = levenberg_marquardt(&mut f, &[0.0, 10.0], &tight(1e-12), &mut go_on).unwrap();
+    report("lm in a box, interior optimum", &info);
+    assert!(
+        info.history.iter().any(|r| r.x[1] == -2.0),
+        "the first steps should reach the bound: {:?}",
+        info.history.iter().map(|r| r.x[1]).collect::<Vec<_>>()
+    );
+    assert!(info.termination.is_converged(), "{}", info.termination);
+    assert!(max_error(&x, &[2.0, 0.5]) < 1e-8, "{x:?}");
+    assert_non_increasing(&info);
+
+    let mut f = Boxed {
+        bounds: vec![(-5.0, 5.0), (1.0, 20.0)],
+    };
+    let (x, info) = levenberg_marquardt(&mut f, &[0.0, 10.0], &tight(1e-12), &mut go_on).unwrap();
+    report("lm in a box, optimum beyond the bound", &info);
+    assert!(info.termination.is_converged(), "{}", info.termination);
+    assert!(max_error(&x, &[2.0, 1.0]) < 1e-8, "{x:?}");
+    // a start outside the box is projected onto it
+    let (x, _) = levenberg_marquardt(&mut f, &[9.0, -7.0], &tight(1e-12), &mut go_on).unwrap();
+    assert!(max_error(&x, &[2.0, 1.0]) < 1e-8, "{x:?}");
+}

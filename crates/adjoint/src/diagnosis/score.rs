@@ -298,6 +298,7 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
                 }
             }
         }
+        scan_magnitudes(&mut problem, base.x.len(), &mut start, best);
         let (x, ev) = fit_problem(&mut problem, &start, iterations)?;
         Ok((x, ev, problem))
     };
@@ -319,6 +320,37 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
     }
 }
 
+/// Decades tried per coordinate by [`scan_magnitudes`].
+const MAX_DECADES: usize = 8;
+
+/// Raises each of the effect's log coordinates of `start` (those from `first` on) by decades
+/// while the cost (`cost` at `start`) falls, at most [`MAX_DECADES`] each, within the box of
+/// [`ParamSet::bounds`]. An effect probed at a tiny neutral value (damping at 1e-4) is many
+/// e-folds from its value, and a log coordinate that far off moves about one e-fold per
+/// Levenberg-Marquardt iteration: the torus' mass damping (true 8) got from 1e-4 to 0.43 in
+/// the 8 iterations of a short refit, which then lost to a wrong effect. One forward run per
+/// decade tried.
+fn scan_magnitudes(problem: &mut Problem, first: usize, start: &mut [f64], mut cost: f64) {
+    let logs = problem.params.log_coordinates();
+    let bounds = problem.params.bounds(start);
+    for k in (first..start.len()).filter(|&k| logs[k]) {
+        for _ in 0..MAX_DECADES {
+            let mut x = start.to_vec();
+            x[k] += 10f64.ln();
+            if x[k] > bounds[k].1 {
+                break;
+            }
+            match problem.evaluate(&x) {
+                Ok(e) if e.cost < cost => {
+                    cost = e.cost;
+                    start[k] = x[k];
+                }
+                _ => break,
+            }
+        }
+    }
+}
+
 /// Fits `problem` from `x0` with Levenberg-Marquardt: the best `x` and its evaluation.
 ///
 /// A stiffness field's log factors `c_k` carry a Gaussian prior centred on the homogeneous
@@ -330,13 +362,15 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
 /// shift of the factors is such a direction; so are coarse cells the body barely fills).
 ///
 /// L-BFGS replaces Levenberg-Marquardt above [`MAX_GAUSS_NEWTON`] coordinates. The model is
-/// only ever evaluated inside [`ParamSet::bounds`]: the optimizer minimizes `C(P(x))` with `P`
-/// the projection onto the box (a coordinate beyond its bound has no effect, and its gradient
-/// and Gauss-Newton rows are zero), and the result is `P(x)`. A parameter the data hardly
-/// determine (the Poisson ratio of a body in free flight under a wrong model) cannot leave its
-/// plausible range, and a fit whose start lies on a bound (the Poisson ratio a wrong model
-/// pushed to 0.01) still moves the other coordinates (a step that only crossed the bound would
-/// otherwise count as a failed evaluation, however good it is for the rest).
+/// only ever evaluated inside [`ParamSet::bounds`]: Levenberg-Marquardt projects its iterates
+/// onto the box (`Objective::bounds`) and holds a coordinate on a bound while its gradient
+/// points out of the box, the others moving. A parameter the data hardly determine (the Poisson
+/// ratio of a body in free flight under a wrong model) cannot leave its plausible range, and
+/// one that a long early step carried to a bound comes back as soon as the data pull it
+/// inwards (before the projection such a coordinate stayed far beyond the bound with a zero
+/// gradient for good: the first step of the torus drop's refit threw its Poisson coordinate to
+/// -35, bound -3.9). L-BFGS, which does not project, minimizes `C(P(x))` with `P` the
+/// projection (a coordinate beyond its bound has no effect); the result is `P(x)`.
 pub fn fit_problem(
     problem: &mut Problem,
     x0: &[f64],
@@ -429,7 +463,8 @@ impl Bounded<'_> {
             .map(|(&v, &(lo, hi))| v.clamp(lo, hi))
             .collect()
     }
-    /// Whether coordinate `k` of `x` lies beyond its bound (the projection holds it there).
+    /// Whether coordinate `k` of `x` lies beyond its bound (the projection holds it there;
+    /// only L-BFGS gets there).
     fn outside(&self, x: &[f64], k: usize) -> bool {
         let (lo, hi) = self.bounds[k];
         x[k] < lo || x[k] > hi
@@ -458,6 +493,10 @@ impl Objective for Bounded<'_> {
             }
         }
         Ok((cost, g))
+    }
+
+    fn bounds(&self) -> Option<&[(f64, f64)]> {
+        Some(&self.bounds)
     }
 }
 
