@@ -180,6 +180,9 @@ pub fn run(args: Args) -> Result<(), String> {
         kind,
         &eyes,
     )?;
+    // the problem's set: resolved against the model (the stiffness field's basis, the external
+    // force's coefficient count), which the parsed one is not
+    let params = problem.params.clone();
     let x_start = problem.x0();
     let initial_values = params.values(&problem.model_at(&x_start));
 
