@@ -230,6 +230,8 @@ pub fn scene_problem_reach(
         CostKind::LevelSet => Box::new(point_cloud_cost(&sim.grid, observations, robust)?),
     };
     let steps = steps.unwrap_or(scene.time.steps);
+    crate::problem::check_memory(steps, sim.grid.dof_nodes.len())
+        .map_err(|e| format!("{}: {e}", scene.path.display()))?;
     Problem::new(sim, params, cost, steps).map_err(|e| e.to_string())
 }
 

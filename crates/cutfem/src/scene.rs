@@ -13,10 +13,12 @@
 //! command builds its model) and builds its physics; [`Scene::to_model`] alone leaves them out.
 //! An effect name in `[model].effects` that is not a core effect is such an extension effect.
 
+mod check;
 mod extensions;
 mod mesh_cache;
 mod numerics;
 
+pub use check::{check_steps, non_finite, quote, MAX_STEPS};
 pub use extensions::{Extension, SECTIONS};
 use mesh_cache::{mesh_cache_get, mesh_cache_put};
 pub use numerics::{DiffusionName, NumericsSection, PreconditionerName};
@@ -271,52 +273,8 @@ impl Scene {
         scene.path = path.to_path_buf();
         scene.dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         scene.extensions = extensions;
-        scene.check(path)?;
+        scene.check(path, text)?;
         Ok(scene)
-    }
-
-    fn check(&self, path: &Path) -> Result<(), Error> {
-        let b = &self.body;
-        let given = [b.sdf.is_some(), b.mesh.is_some(), b.shape.is_some()]
-            .iter()
-            .filter(|&&x| x)
-            .count();
-        if given != 1 {
-            return Err(Error::format(
-                path,
-                "body: give exactly one of `sdf`, `mesh`, `shape`",
-            ));
-        }
-        if let Some(m) = &self.model {
-            for e in &m.effects {
-                // a name that is not a core effect is an extension's, checked by its layer
-                let section = match e.as_str() {
-                    "gravity" => self.gravity.is_some(),
-                    "damping" => self.damping.is_some(),
-                    "ground" => self.ground.is_some(),
-                    "initial_velocity" => self.initial.is_some(),
-                    "stiffness_field" => m.stiffness_field.is_some(),
-                    _ => true,
-                };
-                if !section {
-                    let name = match e.as_str() {
-                        "initial_velocity" => "initial",
-                        "stiffness_field" => "model.stiffness_field",
-                        other => other,
-                    };
-                    return Err(Error::format(
-                        path,
-                        format!("model.effects: `{e}` is listed but the scene has no [{name}] section"),
-                    ));
-                }
-            }
-        }
-        self.numerics
-            .nitsche_penalty()
-            .map_err(|e| Error::format(path, e))?;
-        self.to_model()
-            .validate()
-            .map_err(|e| Error::format(path, e.to_string()))
     }
 
     /// True when the model includes `effect`.

@@ -79,3 +79,103 @@ fn fit_a_stiffness_field_from_the_cli() {
     let rms = &j["rms"];
     assert!(rms["final"].as_f64().unwrap() < 0.5 * rms["initial"].as_f64().unwrap());
 }
+
+#[test]
+fn frame_ranges_are_checked_before_they_are_expanded() {
+    let dir = tmp("robust", "frames");
+    let s = write(&dir, "s.toml", &scene(2000.0, ""));
+    let out = dir.join("o.csv");
+    let (s, out) = (s.to_str().unwrap(), out.to_str().unwrap());
+    for (frames, needle) in [
+        (
+            "0-18446744073709551615",
+            "--frames: frame 18446744073709551615 is beyond the 4 steps",
+        ),
+        ("3,5", "--frames: frame 5 is beyond the 4 steps"),
+        ("99999999999999999999999", "is not a frame number"),
+        ("4-2", "empty range"),
+    ] {
+        one_line_error(&run(&["observe", s, "--out", out, "--frames", frames]), needle);
+    }
+    // within the steps it works (the range is expanded once checked)
+    let j = json(&run(&["observe", s, "--out", out, "--frames", "0-4,2", "--json"]));
+    assert_eq!(j["frames"], 5);
+}
+
+#[test]
+fn implausible_sizes_are_refused_before_anything_is_reserved() {
+    let dir = tmp("robust", "sizes");
+    let big = write(
+        &dir,
+        "big.toml",
+        &scene(2000.0, "").replace("steps = 4", "steps = 100000000000"),
+    );
+    let small = write(&dir, "s.toml", &scene(2000.0, ""));
+    let obs = write(&dir, "obs.csv", "frame,x,y,z\n1,0,1,0\n");
+    let (big, small, obs) = (
+        big.to_str().unwrap(),
+        small.to_str().unwrap(),
+        obs.to_str().unwrap(),
+    );
+    let out = dir.join("out");
+    let out = out.to_str().unwrap();
+    let key = "time.steps: 100000000000 steps is more than the 1000000";
+    one_line_error(&run(&["simulate", big, "--out", out]), key);
+    one_line_error(&run(&["observe", big, "--out", &format!("{out}.csv")]), key);
+    one_line_error(&run(&["fit", big, "--observations", obs, "--out", out]), key);
+    one_line_error(&run(&["gradcheck", big, "--observations", obs]), key);
+    one_line_error(&run(&["diagnose", big, "--observations", obs, "--out", out]), key);
+    let flag = "--steps: 100000000000 steps is more than the 1000000";
+    one_line_error(
+        &run(&["simulate", small, "--steps", "100000000000", "--out", out]),
+        flag,
+    );
+    one_line_error(
+        &run(&[
+            "observe",
+            small,
+            "--steps",
+            "100000000000",
+            "--out",
+            &format!("{out}.csv"),
+        ]),
+        flag,
+    );
+    one_line_error(
+        &run(&[
+            "fit",
+            small,
+            "--observations",
+            obs,
+            "--steps",
+            "100000000000",
+            "--out",
+            out,
+        ]),
+        flag,
+    );
+    one_line_error(
+        &run(&[
+            "simulate",
+            small,
+            "--picture-frames",
+            "100000000000",
+            "--out",
+            out,
+        ]),
+        "--picture-frames must lie in 1..=64",
+    );
+    one_line_error(
+        &run(&[
+            "observe",
+            small,
+            "--cameras",
+            "10000",
+            "--pixels",
+            "8192",
+            "--out",
+            &format!("{out}.csv"),
+        ]),
+        "more than the 134217728 an observation file holds",
+    );
+}
