@@ -140,6 +140,10 @@ pub fn read_camera_eyes(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String>
     Ok(eyes)
 }
 
+/// The largest image side a camera file may give (`observe --pixels` allows as much): a
+/// residual picture is rendered at that size.
+pub const MAX_CAMERA_PIXELS: u64 = 8192;
+
 /// Reads the cameras of a camera file with their intrinsics (`eye`, `target`, `up`, `fov_y`,
 /// `width`, `height`; index = camera id).
 pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera>, String> {
@@ -170,12 +174,22 @@ pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera
                 .ok_or_else(|| bad("fov_y"))?,
             width: c["width"]
                 .as_u64()
-                .filter(|w| *w > 0)
-                .ok_or_else(|| bad("width"))? as usize,
+                .filter(|w| (1..=MAX_CAMERA_PIXELS).contains(w))
+                .ok_or_else(|| {
+                    format!(
+                        "{}: cameras[{i}].width: missing or not an integer in 1..={MAX_CAMERA_PIXELS}",
+                        path.display()
+                    )
+                })? as usize,
             height: c["height"]
                 .as_u64()
-                .filter(|w| *w > 0)
-                .ok_or_else(|| bad("height"))? as usize,
+                .filter(|w| (1..=MAX_CAMERA_PIXELS).contains(w))
+                .ok_or_else(|| {
+                    format!(
+                        "{}: cameras[{i}].height: missing or not an integer in 1..={MAX_CAMERA_PIXELS}",
+                        path.display()
+                    )
+                })? as usize,
         });
     }
     Ok(out)

@@ -343,9 +343,9 @@ pub fn run(args: Args) -> Result<(), String> {
     std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
         .map_err(|e| format!("{}: {e}", path.display()))?;
     if args.json {
-        println!("{summary}");
+        crate::output::print_json(&summary)?;
     } else {
-        eprintln!(
+        crate::note!(
             "fit: {} after {} iterations ({}); rms {:.4e} -> {:.4e}",
             final_values
                 .iter()
@@ -357,7 +357,7 @@ pub fn run(args: Args) -> Result<(), String> {
             ev_initial.rms(),
             ev_final.rms()
         );
-        eprintln!("report: {}", out.display());
+        crate::note!("report: {}", out.display());
     }
     Ok(())
 }

@@ -10,6 +10,7 @@ mod fit;
 mod fit_report;
 mod gradcheck;
 mod observe;
+mod output;
 #[allow(dead_code)]
 mod plot;
 mod problem_args;
@@ -68,8 +69,10 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // the output's reader went away: end quietly (interface.md)
+        Err(e) if e == output::STDOUT_CLOSED => ExitCode::from(output::EXIT_STDOUT_CLOSED),
         Err(e) => {
-            eprintln!("error: {}", e.replace('\n', " "));
+            crate::note!("error: {}", e.replace('\n', " "));
             ExitCode::FAILURE
         }
     }

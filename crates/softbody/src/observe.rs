@@ -307,9 +307,9 @@ pub fn run(a: Args) -> Result<(), String> {
         "seconds": {"simulation": t_sim, "observation": t_obs, "total": t_total.elapsed().as_secs_f64()},
     });
     if a.json {
-        println!("{summary}");
+        crate::output::print_json(&summary)?;
     } else {
-        eprintln!(
+        crate::note!(
             "observed {} points in {} frames ({min}..{max} per frame) with {} cameras of {}x{} pixels, \
              noise {}, seed {}; written to {}",
             obs.len(),

@@ -244,9 +244,9 @@ pub fn run(a: Args) -> Result<(), String> {
     )
     .map_err(|e| format!("{}: {e}", out.display()))?;
     if a.json {
-        println!("{summary}");
+        crate::output::print_json(&summary)?;
     } else {
-        eprintln!(
+        crate::note!(
             "simulated {steps} steps of {} nodes / {} cells ({} cut) in {:.2} s; max displacement {:.4}; \
              CG iterations {}..{}; frames in {}, picture {}",
             g.dofs(),

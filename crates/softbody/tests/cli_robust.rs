@@ -179,3 +179,46 @@ fn implausible_sizes_are_refused_before_anything_is_reserved() {
         "more than the 134217728 an observation file holds",
     );
 }
+
+#[test]
+fn json_into_a_closed_pipe_ends_quietly_and_into_a_full_disk_is_an_error() {
+    use std::process::Stdio;
+    let dir = tmp("robust", "stdout");
+    let s = write(&dir, "s.toml", &scene(2000.0, ""));
+    let s = s.to_str().unwrap();
+    let commands: [Vec<String>; 2] = [
+        vec![
+            "observe".into(),
+            s.into(),
+            "--out".into(),
+            format!("{}/o.csv", dir.display()),
+        ],
+        vec![
+            "simulate".into(),
+            s.into(),
+            "--out".into(),
+            format!("{}/sim", dir.display()),
+        ],
+    ];
+    for args in &commands {
+        // the reader is gone before the command writes: exit 141, nothing on stderr
+        let mut child = softbody()
+            .args(args)
+            .arg("--json")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let o = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(141), "{args:?}: {err}");
+        assert!(err.trim().is_empty(), "{args:?}: {err}");
+        // a full disk: one line naming stdout, exit code 1
+        if Path::new("/dev/full").exists() {
+            let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+            let o = softbody().args(args).arg("--json").stdout(full).output().unwrap();
+            one_line_error(&o, "stdout: No space left on device");
+        }
+    }
+}
