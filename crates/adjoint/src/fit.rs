@@ -114,7 +114,8 @@ pub fn cameras_path(observations: &std::path::Path) -> std::path::PathBuf {
 
 /// Reads the camera eyes of a camera file (index = camera id).
 pub fn read_camera_eyes(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let cams = v["cameras"]
         .as_array()
@@ -148,7 +149,8 @@ pub const MAX_CAMERA_PIXELS: u64 = 8192;
 /// `width`, `height`; index = camera id).
 pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera>, String> {
     let eyes = read_camera_eyes(path)?;
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let cams = v["cameras"].as_array().map(Vec::as_slice).unwrap_or(&[]);
     let mut out = Vec::with_capacity(eyes.len());
@@ -254,7 +256,7 @@ pub type EvaluationLog = std::rc::Rc<std::cell::RefCell<Vec<(Vec<f64>, Evaluatio
 
 /// The first line (1-based) of an observation CSV whose frame is `frame`, if any.
 pub fn frame_line(path: &std::path::Path, frame: usize) -> Option<usize> {
-    let text = std::fs::read_to_string(path).ok()?;
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES).ok()?;
     let mut lines = text.lines().enumerate();
     let header = lines.next()?.1;
     let col = header

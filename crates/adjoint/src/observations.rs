@@ -145,9 +145,11 @@ impl Observations {
     /// Reads a CSV file (see the module docs for the format).
     pub fn read_csv(path: impl AsRef<Path>) -> Result<Self, ObservationError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|source| ObservationError::Io {
-            path: path.to_path_buf(),
-            source,
+        let bytes = cutfem::input::read_text(path, cutfem::input::MAX_DATA_BYTES).map_err(|source| {
+            ObservationError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
         })?;
         let text = String::from_utf8(bytes).map_err(|e| {
             let line = e.as_bytes()[..e.utf8_error().valid_up_to()]

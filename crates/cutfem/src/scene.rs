@@ -250,7 +250,8 @@ pub struct Scene {
 impl Scene {
     /// Reads and checks a scene file.
     pub fn load(path: &Path) -> Result<Scene, Error> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::input::read_string(path, crate::input::MAX_CONFIG_BYTES)
+            .map_err(|e| Error::io(path, e))?;
         Self::parse(&text, path)
     }
 

@@ -126,7 +126,8 @@ pub fn per_frame_json(ev: &Evaluation) -> Value {
 }
 
 fn read_log(path: &Path) -> Result<Vec<Value>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())

@@ -222,3 +222,52 @@ fn json_into_a_closed_pipe_ends_quietly_and_into_a_full_disk_is_an_error() {
         }
     }
 }
+
+#[test]
+fn endless_inputs_are_refused_not_read() {
+    if !Path::new("/dev/zero").exists() {
+        return;
+    }
+    let dir = tmp("robust", "endless");
+    let link = |name: &str| {
+        let p = dir.join(name);
+        std::os::unix::fs::symlink("/dev/zero", &p).unwrap();
+        p
+    };
+    link("z.sdf");
+    link("z.obj");
+    let zero_csv = link("zero.csv");
+    let zero_toml = link("zero.toml");
+    let out = dir.join("out");
+    let out = out.to_str().unwrap();
+    for (body, needle) in [
+        ("sdf = \"z.sdf\"", "z.sdf: resolution must be positive, found 0"),
+        (
+            "mesh = \"z.obj\"",
+            "z.obj: binary data (a NUL byte at byte 0), not a text file",
+        ),
+    ] {
+        let s = write(
+            &dir,
+            "s.toml",
+            &format!("[body]\n{body}\n[material]\nyoung = 1000.0\npoisson = 0.3\n"),
+        );
+        one_line_error(&run(&["simulate", s.to_str().unwrap(), "--out", out]), needle);
+    }
+    one_line_error(
+        &run(&["simulate", zero_toml.to_str().unwrap(), "--out", out]),
+        "zero.toml: binary data",
+    );
+    let s = write(&dir, "s.toml", &scene(2000.0, ""));
+    one_line_error(
+        &run(&[
+            "fit",
+            s.to_str().unwrap(),
+            "--observations",
+            zero_csv.to_str().unwrap(),
+            "--out",
+            out,
+        ]),
+        "zero.csv: binary data",
+    );
+}
