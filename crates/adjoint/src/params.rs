@@ -122,7 +122,11 @@ impl FromStr for Param {
     fn from_str(s: &str) -> Result<Self, String> {
         ALL.iter().copied().find(|p| p.name() == s).ok_or_else(|| {
             let names: Vec<_> = ALL.iter().map(|p| p.name()).collect();
-            format!("unknown parameter `{s}` (known: {})", names.join(", "))
+            format!(
+                "unknown parameter `{}` (known: {})",
+                cutfem::scene::quote(s, cutfem::scene::MAX_QUOTE),
+                names.join(", ")
+            )
         })
     }
 }

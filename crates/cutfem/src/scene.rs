@@ -18,7 +18,7 @@ mod extensions;
 mod mesh_cache;
 mod numerics;
 
-pub use check::{check_steps, non_finite, quote, MAX_STEPS};
+pub use check::{check_steps, dedupe_prefixes, non_finite, quote, shorten_quotes, MAX_QUOTE, MAX_STEPS};
 pub use extensions::{Extension, SECTIONS};
 use mesh_cache::{mesh_cache_get, mesh_cache_put};
 pub use numerics::{DiffusionName, NumericsSection, PreconditionerName};
@@ -266,7 +266,7 @@ impl Scene {
                     format!("line {line}: ")
                 })
                 .unwrap_or_default();
-            Error::format(path, format!("{at}{msg}"))
+            Error::format(path, shorten_quotes(&format!("{at}{msg}")))
         };
         let table: toml::Table = text.parse().map_err(bad)?;
         let extensions = extensions::collect(text, table, path)?;
@@ -456,7 +456,7 @@ impl Scene {
                 other => {
                     return Err(Error::format(
                         &self.path,
-                        format!("body.sdf: unsupported extension `.{other}` (use .sdf or .npy)"),
+                        extension_error("body.sdf", &path, other, ".sdf, .npy"),
                     ))
                 }
             };
@@ -467,6 +467,11 @@ impl Scene {
             if let Some(hit) = mesh_cache_get(&path, resolution) {
                 return Ok(hit);
             }
+            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+            if !["obj", "stl", "ply"].contains(&ext.to_ascii_lowercase().as_str()) {
+                let msg = extension_error("body.mesh", &path, ext, ".obj, .stl, .ply");
+                return Err(Error::format(&self.path, msg));
+            }
             let mesh = crate::TriMesh::load(&path)?;
             let sdf = mesh
                 .to_sdf(resolution, PADDING_CELLS)
@@ -474,9 +479,10 @@ impl Scene {
             mesh_cache_put(&path, resolution, &sdf);
             sdf
         } else if let Some(shape) = &b.shape {
+            // its messages name `body.shape` already
             shape
                 .validate()
-                .map_err(|e| Error::format(&self.path, format!("body.shape: {e}")))?;
+                .map_err(|e| Error::format(&self.path, e.to_string()))?;
             shape
                 .to_sdf(resolution, PADDING_CELLS)
                 .map_err(|e| Error::format(&self.path, e.to_string()))?
@@ -487,6 +493,27 @@ impl Scene {
             ));
         };
         Ok(sdf)
+    }
+}
+
+/// `"KEY: `FILE` has no extension (supported: ...)"` or `"KEY: unsupported extension `.EXT`
+/// (supported: ...)"`.
+pub fn extension_error(key: &str, path: &Path, ext: &str, supported: &str) -> String {
+    let name = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    if ext.is_empty() {
+        format!(
+            "{key}: `{}` has no extension (supported: {supported})",
+            quote(&name, MAX_QUOTE)
+        )
+    } else {
+        format!(
+            "{key}: unsupported extension `.{}` of `{}` (supported: {supported})",
+            quote(ext, MAX_QUOTE),
+            quote(&name, MAX_QUOTE)
+        )
     }
 }
 

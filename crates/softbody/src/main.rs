@@ -72,7 +72,10 @@ fn main() -> ExitCode {
         // the output's reader went away: end quietly (interface.md)
         Err(e) if e == output::STDOUT_CLOSED => ExitCode::from(output::EXIT_STDOUT_CLOSED),
         Err(e) => {
-            crate::note!("error: {}", e.replace('\n', " "));
+            // one line, each prefix once, a quoted bad value repeated up to 100 characters
+            let line = e.replace(['\n', '\r'], " ");
+            let line = cutfem::scene::shorten_quotes(&cutfem::scene::dedupe_prefixes(&line));
+            crate::note!("error: {line}");
             ExitCode::FAILURE
         }
     }

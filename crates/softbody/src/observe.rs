@@ -137,6 +137,19 @@ fn preview(mesh: &TriMesh, cameras: &[Camera], frame: usize) -> Image {
     Image::tile(&tiles, tiles.len().min(4))
 }
 
+/// A file this run created, removed unless the run completes (`path` is taken then).
+struct Created {
+    path: Option<PathBuf>,
+}
+
+impl Drop for Created {
+    fn drop(&mut self) {
+        if let Some(p) = &self.path {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<(), String> {
     let t_total = Instant::now();
@@ -195,7 +208,16 @@ pub fn run(a: Args) -> Result<(), String> {
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }
-    std::fs::File::create(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    // without truncating an earlier file: a failing run leaves it as it was, and removes the
+    // file it created
+    let mut created = Created {
+        path: (!out.exists()).then(|| out.clone()),
+    };
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(&out)
+        .map_err(|e| format!("{}: {e}", out.display()))?;
 
     let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
     let grid = Grid::new(sdf).map_err(|e| format!("{}: {e}", a.scene.display()))?;
@@ -243,7 +265,21 @@ pub fn run(a: Args) -> Result<(), String> {
         pb.inc(1);
     }
     pb.finish_and_clear();
+    if obs.is_empty() {
+        return Err(format!(
+            "{}: the {} cameras saw no point of the body in the {} frames observed (radius {}, fov {} degrees, \
+             {}x{} pixels); move them closer (--radius), widen --fov or raise --pixels",
+            a.scene.display(),
+            cameras.len(),
+            frames.len(),
+            a.radius,
+            a.fov,
+            a.pixels,
+            a.pixels
+        ));
+    }
     obs.write_csv(&out).map_err(|e| e.to_string())?;
+    created.path = None;
     // the cameras beside the CSV: `fit` measures residuals along their viewing rays
     let cams_path = adjoint::fit::cameras_path(&out);
     let cams_json = json!({

@@ -99,11 +99,10 @@ impl TriMesh {
             Some("obj") => obj::parse(path, &String::from_utf8_lossy(&read_text(path, MAX).map_err(io)?))?,
             Some("stl") => stl::parse(path, &read_stl(path)?)?,
             Some("ply") => ply::parse(path, &read_ply(path)?)?,
-            _ => {
-                return Err(Error::format(
-                    path,
-                    "unknown mesh extension (expected .obj, .stl or .ply)",
-                ))
+            other => {
+                let msg =
+                    crate::scene::extension_error("mesh", path, other.unwrap_or(""), ".obj, .stl, .ply");
+                return Err(Error::format(path, msg));
             }
         };
         if mesh.faces.is_empty() {

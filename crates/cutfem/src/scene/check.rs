@@ -35,6 +35,51 @@ pub fn quote(s: &str, max: usize) -> String {
     }
 }
 
+/// The longest quoted value an error message repeats ([`shorten_quotes`]).
+pub const MAX_QUOTE: usize = 100;
+
+/// `msg` with every quoted part (between `"` or backticks; an unclosed quote runs to the end)
+/// longer than [`MAX_QUOTE`] characters cut with an ellipsis: an error names the bad value,
+/// it does not repeat a whole line of garbage.
+pub fn shorten_quotes(msg: &str) -> String {
+    let chars: Vec<char> = msg.chars().collect();
+    let mut out = String::with_capacity(msg.len().min(4 * MAX_QUOTE));
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i];
+        out.push(c);
+        i += 1;
+        if c != '"' && c != '`' {
+            continue;
+        }
+        // the quoted part: up to the same quote (a `\"` inside "..." is escaped)
+        let start = i;
+        while i < chars.len() && chars[i] != c {
+            i += if c == '"' && chars[i] == '\\' { 2 } else { 1 };
+        }
+        let end = i.min(chars.len());
+        let inner: String = chars[start..end].iter().collect();
+        out.push_str(&quote(&inner, MAX_QUOTE));
+        if i < chars.len() {
+            out.push(c);
+            i += 1;
+        }
+    }
+    out
+}
+
+/// `msg` without a prefix repeated in a row (`"s.toml: body.shape: body.shape: ..."` ->
+/// `"s.toml: body.shape: ..."`): layers that each name the key they checked may meet.
+pub fn dedupe_prefixes(msg: &str) -> String {
+    let mut parts: Vec<&str> = Vec::new();
+    for part in msg.split(": ") {
+        if parts.last() != Some(&part) || part.is_empty() {
+            parts.push(part);
+        }
+    }
+    parts.join(": ")
+}
+
 /// The first float of scene `text` that is not finite (`nan`, `inf`), as
 /// `"line N: key.path: not a finite number (nan)"`.
 pub fn non_finite(text: &str) -> Option<String> {
@@ -164,6 +209,31 @@ mod tests {
         let q = quote(&long, 100);
         assert_eq!(q.chars().count(), 101);
         assert!(q.ends_with('…'));
+    }
+
+    #[test]
+    fn long_quoted_values_are_shortened() {
+        let long = "x".repeat(300);
+        let msg = format!("a.csv: line 2: y is not a number: \"{long}\" and `{long}`, `ok`");
+        let short = shorten_quotes(&msg);
+        let cut = format!("{}…", "x".repeat(MAX_QUOTE));
+        assert_eq!(
+            short,
+            format!("a.csv: line 2: y is not a number: \"{cut}\" and `{cut}`, `ok`")
+        );
+        assert_eq!(shorten_quotes(&format!("open \"{long}")), format!("open \"{cut}"));
+        assert_eq!(shorten_quotes("esc \"a\\\"b\" c"), "esc \"a\\\"b\" c");
+        assert_eq!(shorten_quotes("plain"), "plain");
+    }
+
+    #[test]
+    fn repeated_prefixes_are_said_once() {
+        assert_eq!(
+            dedupe_prefixes("s.toml: body.shape: body.shape: sphere needs a radius"),
+            "s.toml: body.shape: sphere needs a radius"
+        );
+        assert_eq!(dedupe_prefixes("a: b: a: c"), "a: b: a: c");
+        assert_eq!(dedupe_prefixes("plain"), "plain");
     }
 
     #[test]
