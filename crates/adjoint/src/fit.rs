@@ -141,8 +141,8 @@ pub fn read_camera_eyes(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String>
     Ok(eyes)
 }
 
-/// The largest image side a camera file may give (`observe --pixels` allows as much): a
-/// residual picture is rendered at that size.
+/// The largest image side of a camera file (as `observe --pixels`): residual pictures are
+/// rendered at that size.
 pub const MAX_CAMERA_PIXELS: u64 = 8192;
 
 /// Reads the cameras of a camera file with their intrinsics (`eye`, `target`, `up`, `fov_y`,
@@ -166,6 +166,13 @@ pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera
             (a.len() == 3).then(|| [a[0], a[1], a[2]])
         };
         let bad = |key: &str| format!("{}: cameras[{i}].{key}: missing or invalid", path.display());
+        let pixels = |key: &str| match c[key].as_u64() {
+            Some(n @ 1..=MAX_CAMERA_PIXELS) => Ok(n as usize),
+            _ => Err(format!(
+                "{}: cameras[{i}].{key}: not an integer in 1..={MAX_CAMERA_PIXELS}",
+                path.display()
+            )),
+        };
         out.push(crate::observe::Camera {
             eye: *eye,
             target: v3("target").ok_or_else(|| bad("target"))?,
@@ -174,24 +181,8 @@ pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera
                 .as_f64()
                 .filter(|f| *f > 0.0 && *f < std::f64::consts::PI)
                 .ok_or_else(|| bad("fov_y"))?,
-            width: c["width"]
-                .as_u64()
-                .filter(|w| (1..=MAX_CAMERA_PIXELS).contains(w))
-                .ok_or_else(|| {
-                    format!(
-                        "{}: cameras[{i}].width: missing or not an integer in 1..={MAX_CAMERA_PIXELS}",
-                        path.display()
-                    )
-                })? as usize,
-            height: c["height"]
-                .as_u64()
-                .filter(|w| (1..=MAX_CAMERA_PIXELS).contains(w))
-                .ok_or_else(|| {
-                    format!(
-                        "{}: cameras[{i}].height: missing or not an integer in 1..={MAX_CAMERA_PIXELS}",
-                        path.display()
-                    )
-                })? as usize,
+            width: pixels("width")?,
+            height: pixels("height")?,
         });
     }
     Ok(out)

@@ -178,6 +178,26 @@ fn implausible_sizes_are_refused_before_anything_is_reserved() {
         ]),
         "more than the 134217728 an observation file holds",
     );
+    // a camera file's image size is bounded like --pixels (residual pictures are drawn at it)
+    let cams = write(
+        &dir,
+        "huge.cameras.json",
+        r#"{"cameras": [{"id": 0, "eye": [0, 3, 0], "target": [0, 1, 0], "fov_y": 1.0,
+            "width": 4294967296, "height": 2}]}"#,
+    );
+    one_line_error(
+        &run(&[
+            "diagnose",
+            small,
+            "--observations",
+            obs,
+            "--cameras",
+            cams.to_str().unwrap(),
+            "--out",
+            out,
+        ]),
+        "huge.cameras.json: cameras[0].width: not an integer in 1..=8192",
+    );
 }
 
 #[test]
