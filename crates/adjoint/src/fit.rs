@@ -114,7 +114,8 @@ pub fn cameras_path(observations: &std::path::Path) -> std::path::PathBuf {
 
 /// Reads the camera eyes of a camera file (index = camera id).
 pub fn read_camera_eyes(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let cams = v["cameras"]
         .as_array()
@@ -140,11 +141,16 @@ pub fn read_camera_eyes(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String>
     Ok(eyes)
 }
 
+/// The largest image side of a camera file (as `observe --pixels`): residual pictures are
+/// rendered at that size.
+pub const MAX_CAMERA_PIXELS: u64 = 8192;
+
 /// Reads the cameras of a camera file with their intrinsics (`eye`, `target`, `up`, `fov_y`,
 /// `width`, `height`; index = camera id).
 pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera>, String> {
     let eyes = read_camera_eyes(path)?;
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let cams = v["cameras"].as_array().map(Vec::as_slice).unwrap_or(&[]);
     let mut out = Vec::with_capacity(eyes.len());
@@ -160,6 +166,13 @@ pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera
             (a.len() == 3).then(|| [a[0], a[1], a[2]])
         };
         let bad = |key: &str| format!("{}: cameras[{i}].{key}: missing or invalid", path.display());
+        let pixels = |key: &str| match c[key].as_u64() {
+            Some(n @ 1..=MAX_CAMERA_PIXELS) => Ok(n as usize),
+            _ => Err(format!(
+                "{}: cameras[{i}].{key}: not an integer in 1..={MAX_CAMERA_PIXELS}",
+                path.display()
+            )),
+        };
         out.push(crate::observe::Camera {
             eye: *eye,
             target: v3("target").ok_or_else(|| bad("target"))?,
@@ -168,14 +181,8 @@ pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera
                 .as_f64()
                 .filter(|f| *f > 0.0 && *f < std::f64::consts::PI)
                 .ok_or_else(|| bad("fov_y"))?,
-            width: c["width"]
-                .as_u64()
-                .filter(|w| *w > 0)
-                .ok_or_else(|| bad("width"))? as usize,
-            height: c["height"]
-                .as_u64()
-                .filter(|w| *w > 0)
-                .ok_or_else(|| bad("height"))? as usize,
+            width: pixels("width")?,
+            height: pixels("height")?,
         });
     }
     Ok(out)
@@ -230,6 +237,8 @@ pub fn scene_problem_reach(
         CostKind::LevelSet => Box::new(point_cloud_cost(&sim.grid, observations, robust)?),
     };
     let steps = steps.unwrap_or(scene.time.steps);
+    crate::problem::check_memory(steps, sim.grid.dof_nodes.len())
+        .map_err(|e| format!("{}: {e}", scene.path.display()))?;
     Problem::new(sim, params, cost, steps).map_err(|e| e.to_string())
 }
 
@@ -238,7 +247,7 @@ pub type EvaluationLog = std::rc::Rc<std::cell::RefCell<Vec<(Vec<f64>, Evaluatio
 
 /// The first line (1-based) of an observation CSV whose frame is `frame`, if any.
 pub fn frame_line(path: &std::path::Path, frame: usize) -> Option<usize> {
-    let text = std::fs::read_to_string(path).ok()?;
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES).ok()?;
     let mut lines = text.lines().enumerate();
     let header = lines.next()?.1;
     let col = header

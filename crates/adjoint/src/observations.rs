@@ -145,9 +145,11 @@ impl Observations {
     /// Reads a CSV file (see the module docs for the format).
     pub fn read_csv(path: impl AsRef<Path>) -> Result<Self, ObservationError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|source| ObservationError::Io {
-            path: path.to_path_buf(),
-            source,
+        let bytes = cutfem::input::read_text(path, cutfem::input::MAX_DATA_BYTES).map_err(|source| {
+            ObservationError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
         })?;
         let text = String::from_utf8(bytes).map_err(|e| {
             let line = e.as_bytes()[..e.utf8_error().valid_up_to()]
@@ -280,12 +282,14 @@ fn parse_line(line: &str, columns: &[Column]) -> Result<(usize, ObservedPoint), 
     let mut frame = 0;
     let mut point = ObservedPoint::new([0.0; 3]);
     for (&col, &field) in columns.iter().zip(&fields) {
+        // a bad field is repeated up to 100 characters
+        let shown = cutfem::scene::quote(field, cutfem::scene::MAX_QUOTE);
         match col {
             Column::Frame => {
                 frame = match field.parse::<i64>() {
                     Ok(f) if f < 0 => return Err(format!("negative frame {f}")),
                     Ok(f) => usize::try_from(f).map_err(|_| format!("frame {f} is too large"))?,
-                    Err(_) => return Err(format!("frame must be a non-negative integer, found {field:?}")),
+                    Err(_) => return Err(format!("frame must be a non-negative integer, found {shown:?}")),
                 }
             }
             Column::X | Column::Y | Column::Z => {
@@ -297,9 +301,9 @@ fn parse_line(line: &str, columns: &[Column]) -> Result<(usize, ObservedPoint), 
                 let name = ["x", "y", "z"][a];
                 let v: f64 = field
                     .parse()
-                    .map_err(|_| format!("{name} is not a number: {field:?}"))?;
+                    .map_err(|_| format!("{name} is not a number: {shown:?}"))?;
                 if !v.is_finite() {
-                    return Err(format!("{name} is not finite: {field:?}"));
+                    return Err(format!("{name} is not finite: {shown:?}"));
                 }
                 point.position[a] = v;
             }
@@ -308,16 +312,16 @@ fn parse_line(line: &str, columns: &[Column]) -> Result<(usize, ObservedPoint), 
                     None
                 } else {
                     Some(field.parse::<u32>().map_err(|_| {
-                        format!("camera must be a non-negative integer or empty, found {field:?}")
+                        format!("camera must be a non-negative integer or empty, found {shown:?}")
                     })?)
                 };
             }
             Column::Weight => {
                 let w: f64 = field
                     .parse()
-                    .map_err(|_| format!("weight is not a number: {field:?}"))?;
+                    .map_err(|_| format!("weight is not a number: {shown:?}"))?;
                 if !w.is_finite() {
-                    return Err(format!("weight is not finite: {field:?}"));
+                    return Err(format!("weight is not finite: {shown:?}"));
                 }
                 if w < 0.0 {
                     return Err(format!("negative weight {w}"));

@@ -122,7 +122,11 @@ impl FromStr for Param {
     fn from_str(s: &str) -> Result<Self, String> {
         ALL.iter().copied().find(|p| p.name() == s).ok_or_else(|| {
             let names: Vec<_> = ALL.iter().map(|p| p.name()).collect();
-            format!("unknown parameter `{s}` (known: {})", names.join(", "))
+            format!(
+                "unknown parameter `{}` (known: {})",
+                cutfem::scene::quote(s, cutfem::scene::MAX_QUOTE),
+                names.join(", ")
+            )
         })
     }
 }
@@ -177,6 +181,8 @@ impl ParamSet {
             .iter()
             .flat_map(|p| match (p, &self.field) {
                 (Param::StiffnessField, Some(f)) => f.labels(),
+                // no basis yet (not resolved by a problem): no coefficients, as in `to_x`
+                (Param::StiffnessField, None) => Vec::new(),
                 _ => p.components(),
             })
             .collect()
@@ -256,7 +262,7 @@ impl ParamSet {
                 Param::InitialVelocity => x.extend(model.initial_velocity.to_array()),
                 Param::InitialAngularVelocity => x.extend(model.initial_angular_velocity.to_array()),
                 // fits start from the homogeneous material (all factors 1)
-                Param::StiffnessField => x.extend(vec![0.0; self.field.as_ref().expect("checked").len()]),
+                Param::StiffnessField => x.extend(vec![0.0; self.field.as_ref().map_or(0, |f| f.len())]),
                 Param::ExternalForce(_) => x.extend(external(model).coefficients.iter().copied()),
             }
         }
@@ -288,8 +294,10 @@ impl ParamSet {
                 Param::InitialVelocity => model.initial_velocity = v3(take(3)),
                 Param::InitialAngularVelocity => model.initial_angular_velocity = v3(take(3)),
                 Param::StiffnessField => {
-                    let f = self.field.as_ref().expect("checked");
-                    model.stiffness_scale = Some(f.scales(take(f.len())).into());
+                    // without a basis the set has no coefficients of it (`labels`)
+                    if let Some(f) = &self.field {
+                        model.stiffness_scale = Some(f.scales(take(f.len())).into());
+                    }
                 }
                 Param::ExternalForce(_) => {
                     let e = model.external_force.as_mut().expect("checked");
@@ -374,7 +382,7 @@ impl ParamSet {
                 Param::InitialVelocity => out.extend(g.initial_velocity.to_array()),
                 Param::InitialAngularVelocity => out.extend(g.initial_angular_velocity.to_array()),
                 Param::StiffnessField => {
-                    let f = self.field.as_ref().expect("checked");
+                    let Some(f) = self.field.as_ref() else { continue };
                     let ones;
                     let s = match model.stiffness_scale.as_deref() {
                         Some(s) => s,
@@ -550,3 +558,6 @@ fn external_gradient(model: &Model, g: &PhysicalGradient) -> Vec<f64> {
 fn v3(s: &[f64]) -> Vec3<f64> {
     Vec3::new(s[0], s[1], s[2])
 }
+
+#[cfg(test)]
+mod tests;

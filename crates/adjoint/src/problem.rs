@@ -71,6 +71,24 @@ impl Evaluation {
     }
 }
 
+/// Errors (naming `time.steps`) when `steps` steps of a body of `dofs` nodes need more memory
+/// than is available: the adjoint keeps `u` and `v` of every frame, 3 f64 per node each.
+pub fn check_memory(steps: usize, dofs: usize) -> Result<(), String> {
+    let bytes = (steps as u128 + 1) * dofs as u128 * 48;
+    match cutfem::fem::grid::available_memory() {
+        Some(avail) if bytes > avail as u128 => {
+            let gib = |b: u128| b as f64 / (1u64 << 30) as f64;
+            Err(format!(
+                "time.steps: {steps} steps of {dofs} nodes keep {:.1} GiB of states for the adjoint, \
+                 more than the {:.1} GiB available; lower the steps or the resolution",
+                gib(bytes),
+                gib(avail as u128)
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// A reconstruction problem (module docs).
 #[derive(Debug)]
 pub struct Problem {
@@ -128,6 +146,7 @@ impl Problem {
                 )));
             }
         }
+        check_memory(steps, sim.grid.dof_nodes.len()).map_err(ProblemError::Invalid)?;
         let size = {
             let s = &sim.grid.sdf;
             let d = s.dims;

@@ -26,6 +26,7 @@
 pub mod cutcell;
 pub mod error;
 pub mod fem;
+pub mod input;
 pub mod mesh;
 pub mod render;
 pub mod scene;

@@ -13,10 +13,12 @@
 //! command builds its model) and builds its physics; [`Scene::to_model`] alone leaves them out.
 //! An effect name in `[model].effects` that is not a core effect is such an extension effect.
 
+mod check;
 mod extensions;
 mod mesh_cache;
 mod numerics;
 
+pub use check::{check_steps, dedupe_prefixes, non_finite, quote, shorten_quotes, MAX_QUOTE, MAX_STEPS};
 pub use extensions::{Extension, SECTIONS};
 use mesh_cache::{mesh_cache_get, mesh_cache_put};
 pub use numerics::{DiffusionName, NumericsSection, PreconditionerName};
@@ -248,7 +250,8 @@ pub struct Scene {
 impl Scene {
     /// Reads and checks a scene file.
     pub fn load(path: &Path) -> Result<Scene, Error> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::input::read_string(path, crate::input::MAX_CONFIG_BYTES)
+            .map_err(|e| Error::io(path, e))?;
         Self::parse(&text, path)
     }
 
@@ -263,7 +266,7 @@ impl Scene {
                     format!("line {line}: ")
                 })
                 .unwrap_or_default();
-            Error::format(path, format!("{at}{msg}"))
+            Error::format(path, shorten_quotes(&format!("{at}{msg}")))
         };
         let table: toml::Table = text.parse().map_err(bad)?;
         let extensions = extensions::collect(text, table, path)?;
@@ -271,52 +274,8 @@ impl Scene {
         scene.path = path.to_path_buf();
         scene.dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         scene.extensions = extensions;
-        scene.check(path)?;
+        scene.check(path, text)?;
         Ok(scene)
-    }
-
-    fn check(&self, path: &Path) -> Result<(), Error> {
-        let b = &self.body;
-        let given = [b.sdf.is_some(), b.mesh.is_some(), b.shape.is_some()]
-            .iter()
-            .filter(|&&x| x)
-            .count();
-        if given != 1 {
-            return Err(Error::format(
-                path,
-                "body: give exactly one of `sdf`, `mesh`, `shape`",
-            ));
-        }
-        if let Some(m) = &self.model {
-            for e in &m.effects {
-                // a name that is not a core effect is an extension's, checked by its layer
-                let section = match e.as_str() {
-                    "gravity" => self.gravity.is_some(),
-                    "damping" => self.damping.is_some(),
-                    "ground" => self.ground.is_some(),
-                    "initial_velocity" => self.initial.is_some(),
-                    "stiffness_field" => m.stiffness_field.is_some(),
-                    _ => true,
-                };
-                if !section {
-                    let name = match e.as_str() {
-                        "initial_velocity" => "initial",
-                        "stiffness_field" => "model.stiffness_field",
-                        other => other,
-                    };
-                    return Err(Error::format(
-                        path,
-                        format!("model.effects: `{e}` is listed but the scene has no [{name}] section"),
-                    ));
-                }
-            }
-        }
-        self.numerics
-            .nitsche_penalty()
-            .map_err(|e| Error::format(path, e))?;
-        self.to_model()
-            .validate()
-            .map_err(|e| Error::format(path, e.to_string()))
     }
 
     /// True when the model includes `effect`.
@@ -497,7 +456,7 @@ impl Scene {
                 other => {
                     return Err(Error::format(
                         &self.path,
-                        format!("body.sdf: unsupported extension `.{other}` (use .sdf or .npy)"),
+                        extension_error("body.sdf", &path, other, ".sdf, .npy"),
                     ))
                 }
             };
@@ -508,6 +467,11 @@ impl Scene {
             if let Some(hit) = mesh_cache_get(&path, resolution) {
                 return Ok(hit);
             }
+            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+            if !["obj", "stl", "ply"].contains(&ext.to_ascii_lowercase().as_str()) {
+                let msg = extension_error("body.mesh", &path, ext, ".obj, .stl, .ply");
+                return Err(Error::format(&self.path, msg));
+            }
             let mesh = crate::TriMesh::load(&path)?;
             let sdf = mesh
                 .to_sdf(resolution, PADDING_CELLS)
@@ -515,9 +479,10 @@ impl Scene {
             mesh_cache_put(&path, resolution, &sdf);
             sdf
         } else if let Some(shape) = &b.shape {
+            // its messages name `body.shape` already
             shape
                 .validate()
-                .map_err(|e| Error::format(&self.path, format!("body.shape: {e}")))?;
+                .map_err(|e| Error::format(&self.path, e.to_string()))?;
             shape
                 .to_sdf(resolution, PADDING_CELLS)
                 .map_err(|e| Error::format(&self.path, e.to_string()))?
@@ -528,6 +493,27 @@ impl Scene {
             ));
         };
         Ok(sdf)
+    }
+}
+
+/// `"KEY: `FILE` has no extension (supported: ...)"` or `"KEY: unsupported extension `.EXT`
+/// (supported: ...)"`.
+pub fn extension_error(key: &str, path: &Path, ext: &str, supported: &str) -> String {
+    let name = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    if ext.is_empty() {
+        format!(
+            "{key}: `{}` has no extension (supported: {supported})",
+            quote(&name, MAX_QUOTE)
+        )
+    } else {
+        format!(
+            "{key}: unsupported extension `.{}` of `{}` (supported: {supported})",
+            quote(ext, MAX_QUOTE),
+            quote(&name, MAX_QUOTE)
+        )
     }
 }
 

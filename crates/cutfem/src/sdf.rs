@@ -110,9 +110,10 @@ impl SdfGrid {
         resolution: f64,
         padding_cells: usize,
     ) -> Result<([f64; 3], [usize; 3]), Error> {
-        if !(resolution.is_finite() && resolution > 0.0) {
+        // its inverse (the spacing) must be finite too
+        if !(resolution.is_finite() && resolution > 0.0 && (1.0 / resolution).is_finite()) {
             return Err(Error::Invalid(format!(
-                "body: resolution must be a positive number of cells per unit, found {resolution}"
+                "body: resolution must be a positive number of cells per unit, found {resolution:?}"
             )));
         }
         if min.iter().chain(max.iter()).any(|x| !x.is_finite()) || (0..3).any(|a| min[a] > max[a]) {
@@ -131,7 +132,7 @@ impl SdfGrid {
             total *= n;
             if total.is_nan() || total > MAX_NODES as f64 {
                 return Err(Error::Invalid(format!(
-                    "body: a grid of resolution {resolution} over {min:?} .. {max:?} with {padding_cells} \
+                    "body: a grid of resolution {resolution:?} over {min:?} .. {max:?} with {padding_cells} \
                      padding cells needs more than {MAX_NODES} nodes; lower the resolution"
                 )));
             }

@@ -78,7 +78,7 @@ pub fn run(a: Args) -> Result<(), String> {
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
     let say = |s: String| {
         if !a.json {
-            eprintln!("{s}");
+            crate::note!("{s}");
         }
     };
     let base_effects = ["gravity", "corotation", "initial_velocity"];
@@ -228,14 +228,14 @@ pub fn run(a: Args) -> Result<(), String> {
     std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
         .map_err(|e| format!("{}: {e}", path.display()))?;
     if a.json {
-        println!("{summary}");
+        crate::output::print_json(&summary)?;
     } else {
-        eprintln!("5. before / after");
-        eprintln!("{:<14} {:>12} {:>12} {:>22}", "", "before", "after", "truth");
+        crate::note!("5. before / after");
+        crate::note!("{:<14} {:>12} {:>12} {:>22}", "", "before", "after", "truth");
         for (k, b, af, t) in rows {
-            eprintln!("{k:<14} {b:>12} {af:>12} {t:>22}");
+            crate::note!("{k:<14} {b:>12} {af:>12} {t:>22}");
         }
-        eprintln!(
+        crate::note!(
             "the error fell {fall:.1}x by adding `{missing}`; report, pictures and scene files in {} ({:.0} s)",
             out.display(),
             t0.elapsed().as_secs_f64()

@@ -245,17 +245,17 @@ pub fn run(args: Args) -> Result<(), String> {
         refine_check: !args.no_refine_check,
     })?;
     if args.json {
-        println!("{summary}");
+        crate::output::print_json(&summary)?;
     } else {
         print_text(&d);
-        eprintln!("report: {}", out.display());
+        crate::note!("report: {}", out.display());
     }
     Ok(())
 }
 
 /// The diagnosis for a reader, on stderr.
 pub fn print_text(d: &Diagnosis) {
-    eprintln!(
+    crate::note!(
         "model as given ({}): rms {:.4e} (start {:.4e}), noise floor {:.4e}",
         d.effects.join(", "),
         d.rms,
@@ -264,16 +264,21 @@ pub fn print_text(d: &Diagnosis) {
     );
     let worst = d.per_frame.iter().find(|f| f.0 == d.worst_frame);
     if let Some((f, r, _)) = worst {
-        eprintln!("worst frame {f}: rms {r:.4e}");
+        crate::note!("worst frame {f}: rms {r:.4e}");
     }
     if let Some(r) = d.regions.iter().max_by(|a, b| a.rms.total_cmp(&b.rms)) {
-        eprintln!(
+        crate::note!(
             "worst region {} around ({:.2}, {:.2}, {:.2}): rms {:.4e}, mean {:+.3e}",
-            r.id, r.center[0], r.center[1], r.center[2], r.rms, r.mean
+            r.id,
+            r.center[0],
+            r.center[1],
+            r.center[2],
+            r.rms,
+            r.mean
         );
     }
     let p = d.direction.principal;
-    eprintln!(
+    crate::note!(
         "residual direction ({:.2}, {:.2}, {:.2}) carries {:.0}% of it; a uniform shift explains {:.0}%",
         p[0],
         p[1],
@@ -281,13 +286,17 @@ pub fn print_text(d: &Diagnosis) {
         100.0 * d.direction.principal_share,
         100.0 * d.direction.shift_share
     );
-    eprintln!(
+    crate::note!(
         "{:<18} {:>12} {:>12} {:>12} {:>12}",
-        "candidate", "score", "predicted", "rms after", "dBIC"
+        "candidate",
+        "score",
+        "predicted",
+        "rms after",
+        "dBIC"
     );
     for c in &d.candidates {
         let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4e}"));
-        eprintln!(
+        crate::note!(
             "{:<18} {:>12.4e} {:>12.4e} {:>12} {:>12}",
             c.effect,
             c.score,
@@ -296,5 +305,5 @@ pub fn print_text(d: &Diagnosis) {
             c.delta_bic.map_or("-".to_string(), |v| format!("{v:.1}"))
         );
     }
-    eprintln!("{}", d.verdict);
+    crate::note!("{}", d.verdict);
 }

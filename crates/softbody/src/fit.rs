@@ -126,7 +126,8 @@ pub fn per_frame_json(ev: &Evaluation) -> Value {
 }
 
 fn read_log(path: &Path) -> Result<Vec<Value>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
@@ -180,6 +181,9 @@ pub fn run(args: Args) -> Result<(), String> {
         kind,
         &eyes,
     )?;
+    // the problem's set: resolved against the model (the stiffness field's basis, the external
+    // force's coefficient count), which the parsed one is not
+    let params = problem.params.clone();
     let x_start = problem.x0();
     let initial_values = params.values(&problem.model_at(&x_start));
 
@@ -340,9 +344,9 @@ pub fn run(args: Args) -> Result<(), String> {
     std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
         .map_err(|e| format!("{}: {e}", path.display()))?;
     if args.json {
-        println!("{summary}");
+        crate::output::print_json(&summary)?;
     } else {
-        eprintln!(
+        crate::note!(
             "fit: {} after {} iterations ({}); rms {:.4e} -> {:.4e}",
             final_values
                 .iter()
@@ -354,7 +358,7 @@ pub fn run(args: Args) -> Result<(), String> {
             ev_initial.rms(),
             ev_final.rms()
         );
-        eprintln!("report: {}", out.display());
+        crate::note!("report: {}", out.display());
     }
     Ok(())
 }

@@ -58,22 +58,27 @@ pub fn run(args: Args) -> Result<(), String> {
                 )
             })
             .collect();
-        println!(
-            "{}",
-            json!({"parameters": parameters, "max_rel_error": worst, "solver": "sparse Cholesky"})
-        );
+        crate::output::print_json(
+            &json!({"parameters": parameters, "max_rel_error": worst, "solver": "sparse Cholesky"}),
+        )?;
     } else {
-        eprintln!(
+        crate::note!(
             "{:>28} {:>16} {:>16} {:>10}",
-            "parameter", "adjoint", "central diff.", "rel. err"
+            "parameter",
+            "adjoint",
+            "central diff.",
+            "rel. err"
         );
         for r in &rows {
-            eprintln!(
+            crate::note!(
                 "{:>28} {:>16.8e} {:>16.8e} {:>10.2e}",
-                r.name, r.adjoint, r.finite_difference, r.rel_error
+                r.name,
+                r.adjoint,
+                r.finite_difference,
+                r.rel_error
             );
         }
-        eprintln!("largest relative error: {worst:.2e}");
+        crate::note!("largest relative error: {worst:.2e}");
     }
     Ok(())
 }

@@ -10,6 +10,7 @@ mod fit;
 mod fit_report;
 mod gradcheck;
 mod observe;
+mod output;
 #[allow(dead_code)]
 mod plot;
 mod problem_args;
@@ -68,8 +69,13 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // the output's reader went away: end quietly (interface.md)
+        Err(e) if e == output::STDOUT_CLOSED => ExitCode::from(output::EXIT_STDOUT_CLOSED),
         Err(e) => {
-            eprintln!("error: {}", e.replace('\n', " "));
+            // one line, each prefix once, a quoted bad value repeated up to 100 characters
+            let line = e.replace(['\n', '\r'], " ");
+            let line = cutfem::scene::shorten_quotes(&cutfem::scene::dedupe_prefixes(&line));
+            crate::note!("error: {line}");
             ExitCode::FAILURE
         }
     }

@@ -24,6 +24,10 @@ use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// The most points `observe` may be asked to see (cameras x pixels^2 x frames): 2^27, about
+/// 5 GiB of points in memory.
+pub const MAX_POINTS: u64 = 1 << 27;
+
 /// Arguments of `observe`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -67,25 +71,40 @@ pub struct Args {
     pub json: bool,
 }
 
-/// Parses `0,5,10-20` into sorted, distinct frame numbers.
-fn parse_frames(s: &str) -> Result<Vec<usize>, String> {
-    let bad = |part: &str| format!("--frames: {part:?} is not a frame number or a range a-b");
+/// Parses `0,5,10-20` into sorted, distinct frame numbers, each at most `steps`: every
+/// number is checked before a range is expanded (so a range's size is bounded by the steps).
+fn parse_frames(s: &str, steps: usize) -> Result<Vec<usize>, String> {
+    let quoted = |part: &str| cutfem::scene::quote(part, 100);
+    let bad = |part: &str| {
+        format!(
+            "--frames: {:?} is not a frame number or a range a-b",
+            quoted(part)
+        )
+    };
     let mut out = Vec::new();
     for part in s.split(',').map(str::trim) {
-        let num = |t: &str| t.trim().parse::<usize>().map_err(|_| bad(part));
+        let num = |t: &str| {
+            let f = t.trim().parse::<usize>().map_err(|_| bad(part))?;
+            if f > steps {
+                return Err(format!(
+                    "--frames: frame {f} is beyond the {steps} steps simulated (raise [time].steps or pass --steps)"
+                ));
+            }
+            Ok(f)
+        };
         match part.split_once('-') {
             Some((a, b)) => {
                 let (a, b) = (num(a)?, num(b)?);
                 if a > b {
-                    return Err(format!("--frames: empty range {part:?}"));
+                    return Err(format!("--frames: empty range {:?}", quoted(part)));
                 }
                 out.extend(a..=b);
             }
             None => out.push(num(part)?),
         }
+        out.sort_unstable();
+        out.dedup();
     }
-    out.sort_unstable();
-    out.dedup();
     Ok(out)
 }
 
@@ -118,6 +137,19 @@ fn preview(mesh: &TriMesh, cameras: &[Camera], frame: usize) -> Image {
     Image::tile(&tiles, tiles.len().min(4))
 }
 
+/// A file this run created, removed unless the run completes (`path` is taken then).
+struct Created {
+    path: Option<PathBuf>,
+}
+
+impl Drop for Created {
+    fn drop(&mut self) {
+        if let Some(p) = &self.path {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<(), String> {
     let t_total = Instant::now();
@@ -146,9 +178,9 @@ pub fn run(a: Args) -> Result<(), String> {
     rig.validate()
         .map_err(|e| format!("--{}", e.replacen("fov_y", "fov", 1)))?;
     let scene = Scene::load(&a.scene).map_err(|e| e.to_string())?;
-    let steps = a.steps.unwrap_or(scene.time.steps);
+    let steps = crate::problem_args::steps(a.steps, &scene)?;
     let mut frames = match &a.frames {
-        Some(s) => parse_frames(s)?,
+        Some(s) => parse_frames(s, steps)?,
         None => (1..=steps).collect(),
     };
     if a.include_reference && frames.first() != Some(&0) {
@@ -157,9 +189,15 @@ pub fn run(a: Args) -> Result<(), String> {
     let Some(&last) = frames.last() else {
         return Err("no frame to observe (steps is 0; add --include-reference for frame 0)".into());
     };
-    if last > steps {
+    // what the points can take: every camera sees at most W x W points per frame
+    let rays = (a.cameras as u128) * (a.pixels as u128).pow(2) * frames.len() as u128;
+    if rays > MAX_POINTS as u128 {
         return Err(format!(
-            "--frames: frame {last} is beyond the {steps} steps simulated"
+            "--cameras {} x --pixels {}^2 x {} frames could see {rays} points, more than the {MAX_POINTS} \
+             an observation file holds; lower --pixels, --cameras or the frames",
+            a.cameras,
+            a.pixels,
+            frames.len()
         ));
     }
     let out = a
@@ -170,7 +208,16 @@ pub fn run(a: Args) -> Result<(), String> {
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }
-    std::fs::File::create(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    // without truncating an earlier file: a failing run leaves it as it was, and removes the
+    // file it created
+    let mut created = Created {
+        path: (!out.exists()).then(|| out.clone()),
+    };
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(&out)
+        .map_err(|e| format!("{}: {e}", out.display()))?;
 
     let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
     let grid = Grid::new(sdf).map_err(|e| format!("{}: {e}", a.scene.display()))?;
@@ -218,7 +265,21 @@ pub fn run(a: Args) -> Result<(), String> {
         pb.inc(1);
     }
     pb.finish_and_clear();
+    if obs.is_empty() {
+        return Err(format!(
+            "{}: the {} cameras saw no point of the body in the {} frames observed (radius {}, fov {} degrees, \
+             {}x{} pixels); move them closer (--radius), widen --fov or raise --pixels",
+            a.scene.display(),
+            cameras.len(),
+            frames.len(),
+            a.radius,
+            a.fov,
+            a.pixels,
+            a.pixels
+        ));
+    }
     obs.write_csv(&out).map_err(|e| e.to_string())?;
+    created.path = None;
     // the cameras beside the CSV: `fit` measures residuals along their viewing rays
     let cams_path = adjoint::fit::cameras_path(&out);
     let cams_json = json!({
@@ -282,9 +343,9 @@ pub fn run(a: Args) -> Result<(), String> {
         "seconds": {"simulation": t_sim, "observation": t_obs, "total": t_total.elapsed().as_secs_f64()},
     });
     if a.json {
-        println!("{summary}");
+        crate::output::print_json(&summary)?;
     } else {
-        eprintln!(
+        crate::note!(
             "observed {} points in {} frames ({min}..{max} per frame) with {} cameras of {}x{} pixels, \
              noise {}, seed {}; written to {}",
             obs.len(),

@@ -53,6 +53,7 @@ impl ProblemArgs {
     /// cameras; every failure is one line naming the file, line, key or flag.
     pub fn load(&self) -> Result<Loaded, String> {
         let scene = Scene::load(&self.scene).map_err(|e| e.to_string())?;
+        let n_steps = steps(self.steps, &scene)?;
         let section = crate::fit::fit_section(&scene)?;
         let names: Vec<String> = match (&self.params, &section.parameters) {
             (Some(p), _) => vec![p.clone()],
@@ -62,11 +63,7 @@ impl ProblemArgs {
         let params = ParamSet::parse(&names).map_err(|e| format!("--params: {e}"))?;
         let kind: CostKind = self.cost.parse().map_err(|e| format!("--cost: {e}"))?;
         let observations = Observations::read_csv(&self.observations).map_err(|e| e.to_string())?;
-        check_frames(
-            &observations,
-            &self.observations,
-            self.steps.unwrap_or(scene.time.steps),
-        )?;
+        check_frames(&observations, &self.observations, n_steps)?;
         let eyes = match &self.cameras {
             Some(p) => read_camera_eyes(p)?,
             None => {
@@ -86,5 +83,15 @@ impl ProblemArgs {
             observations,
             eyes,
         })
+    }
+}
+
+/// The steps to simulate: `--steps` when given (checked against
+/// [`cutfem::scene::MAX_STEPS`], naming the flag), else the scene's `[time].steps` (checked on
+/// load).
+pub fn steps(flag: Option<usize>, scene: &Scene) -> Result<usize, String> {
+    match flag {
+        Some(n) => cutfem::scene::check_steps(n, "--steps").map(|()| n),
+        None => Ok(scene.time.steps),
     }
 }

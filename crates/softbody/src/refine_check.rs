@@ -28,14 +28,14 @@ pub fn run(
     bar.finish_and_clear();
     match result {
         Ok(check) => {
-            eprintln!("{}", check.summary(noise));
+            crate::note!("{}", check.summary(noise));
             if let Some(w) = check.warning(noise) {
-                eprintln!("warning: {w}");
+                crate::note!("warning: {w}");
             }
             check.to_json(noise)
         }
         Err(e) => {
-            eprintln!("refine check skipped: {e}");
+            crate::note!("refine check skipped: {e}");
             json!({ "error": e })
         }
     }

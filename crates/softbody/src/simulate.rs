@@ -13,6 +13,9 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// The most frames the picture shows (each is a 320 x 240 tile).
+pub const MAX_PICTURE_FRAMES: usize = 64;
+
 /// Arguments of `simulate`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -27,7 +30,7 @@ pub struct Args {
     /// Override `[time].steps`.
     #[arg(long)]
     pub steps: Option<usize>,
-    /// Number of frames shown in the picture.
+    /// Number of frames shown in the picture (1 to 64).
     #[arg(long, default_value_t = 4)]
     pub picture_frames: usize,
     /// Also run the scene at twice and half its resolution and report how far the surface
@@ -92,7 +95,13 @@ pub fn picture(frames: &[(usize, TriMesh)], ground: Option<f64>) -> Image {
 pub fn run(a: Args) -> Result<(), String> {
     let t_total = Instant::now();
     let scene = Scene::load(&a.scene).map_err(|e| e.to_string())?;
-    let steps = a.steps.unwrap_or(scene.time.steps);
+    let steps = crate::problem_args::steps(a.steps, &scene)?;
+    if !(1..=MAX_PICTURE_FRAMES).contains(&a.picture_frames) {
+        return Err(format!(
+            "--picture-frames must lie in 1..={MAX_PICTURE_FRAMES}, found {}",
+            a.picture_frames
+        ));
+    }
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.scene, "simulate"));
     let frames_dir = out.join("frames");
     std::fs::create_dir_all(&frames_dir).map_err(|e| format!("{}: {e}", frames_dir.display()))?;
@@ -114,7 +123,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let mut advected = None;
 
     let picks: Vec<usize> = {
-        let n = a.picture_frames.max(1);
+        let n = a.picture_frames.min(steps + 1);
         let mut v: Vec<usize> = (0..n)
             .map(|i| if n == 1 { steps } else { i * steps / (n - 1) })
             .collect();
@@ -235,9 +244,9 @@ pub fn run(a: Args) -> Result<(), String> {
     )
     .map_err(|e| format!("{}: {e}", out.display()))?;
     if a.json {
-        println!("{summary}");
+        crate::output::print_json(&summary)?;
     } else {
-        eprintln!(
+        crate::note!(
             "simulated {steps} steps of {} nodes / {} cells ({} cut) in {:.2} s; max displacement {:.4}; \
              CG iterations {}..{}; frames in {}, picture {}",
             g.dofs(),

@@ -99,7 +99,7 @@ pub fn append(path: &Path, entry: &Entry) -> Result<(), String> {
 /// Reads a history file (missing file: empty). A line that is not a history entry is an error
 /// naming the file and line.
 pub fn read(path: &Path) -> Result<Vec<Entry>, String> {
-    let text = match std::fs::read_to_string(path) {
+    let text = match cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
         Err(e) => return Err(format!("{}: {e}", path.display())),

@@ -38,6 +38,52 @@ pub struct TriMesh {
     pub faces: Vec<[u32; 3]>,
 }
 
+use crate::input::{read_text, Input, MAX_DATA_BYTES as MAX};
+
+/// The bytes of an STL file, bounded ([`crate::input`]): a regular file up to [`MAX`]; a
+/// stream that does not start with `solid` to the size its triangle count implies and one byte
+/// more (which [`stl::parse`] refuses as not binary), any other up to [`MAX`].
+fn read_stl(path: &Path) -> Result<Vec<u8>, Error> {
+    let io = |e| Error::io(path, e);
+    let mut input = Input::open(path).map_err(io)?;
+    let regular = input.size().is_some();
+    let head = input.head(84).map_err(io)?;
+    let ascii = head.trim_ascii_start().starts_with(b"solid");
+    if ascii || head.len() < 84 || regular {
+        return input.rest(MAX).map_err(io);
+    }
+    // a stream that claims to be binary: what its count implies and one byte more
+    let n = u32::from_le_bytes([head[80], head[81], head[82], head[83]]) as u64;
+    let bytes = input.head((85 + 50 * n).min(MAX + 1) as usize).map_err(io)?;
+    if bytes.len() as u64 > MAX {
+        return Err(Error::format(
+            path,
+            format!("more than {MAX} bytes: not a regular file?"),
+        ));
+    }
+    Ok(bytes.to_vec())
+}
+
+/// The bytes of a PLY file, bounded ([`crate::input`]): its header must end within the first
+/// 64 KiB (an endless stream of anything else is refused there), the body is read up to
+/// [`MAX`].
+fn read_ply(path: &Path) -> Result<Vec<u8>, Error> {
+    const HEADER: usize = 1 << 16;
+    let io = |e| Error::io(path, e);
+    let mut input = Input::open(path).map_err(io)?;
+    let head = input.head(HEADER).map_err(io)?;
+    if !head.windows(10).any(|w| w == b"end_header") {
+        return Err(Error::format(
+            path,
+            format!(
+                "no 'end_header' within the first {} bytes: not a PLY file",
+                head.len()
+            ),
+        ));
+    }
+    input.rest(MAX).map_err(io)
+}
+
 impl TriMesh {
     /// Loads a mesh, choosing the reader by extension (case-insensitive): `.obj`, `.stl`
     /// (ASCII or binary) or `.ply` (ASCII or binary little-endian). Errors name the file and
@@ -48,16 +94,15 @@ impl TriMesh {
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        let read = || std::fs::read(path).map_err(|e| Error::io(path, e));
+        let io = |e| Error::io(path, e);
         let mesh = match ext.as_deref() {
-            Some("obj") => obj::parse(path, &String::from_utf8_lossy(&read()?))?,
-            Some("stl") => stl::parse(path, &read()?)?,
-            Some("ply") => ply::parse(path, &read()?)?,
-            _ => {
-                return Err(Error::format(
-                    path,
-                    "unknown mesh extension (expected .obj, .stl or .ply)",
-                ))
+            Some("obj") => obj::parse(path, &String::from_utf8_lossy(&read_text(path, MAX).map_err(io)?))?,
+            Some("stl") => stl::parse(path, &read_stl(path)?)?,
+            Some("ply") => ply::parse(path, &read_ply(path)?)?,
+            other => {
+                let msg =
+                    crate::scene::extension_error("mesh", path, other.unwrap_or(""), ".obj, .stl, .ply");
+                return Err(Error::format(path, msg));
             }
         };
         if mesh.faces.is_empty() {

@@ -49,7 +49,11 @@ impl Extension {
             .map_err(|e: toml::de::Error| {
                 Error::format(
                     path,
-                    format!("{}[{name}]: {}", at(self.line), e.message().replace('\n', " ")),
+                    super::shorten_quotes(&format!(
+                        "{}[{name}]: {}",
+                        at(self.line),
+                        e.message().replace('\n', " ")
+                    )),
                 )
             })
     }

@@ -9,6 +9,9 @@ use std::path::Path;
 
 const MAGIC: &[u8] = b"\x93NUMPY";
 
+/// The longest header read (NumPy writes ~128 bytes; its own limit is 64 KiB by default).
+const MAX_HEADER: usize = 1 << 20;
+
 /// Element type of a written `.npy` array.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NpyDtype {
@@ -149,30 +152,35 @@ impl SdfGrid {
                 path.display()
             )));
         }
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        if bytes.len() < 10 || &bytes[..6] != MAGIC {
+        // the header decides how much is read: an endless stream is never read whole
+        let mut input = crate::input::Input::open(path).map_err(|e| Error::io(path, e))?;
+        let magic = input.head(12).map_err(|e| Error::io(path, e))?.to_vec();
+        if magic.len() < 10 || &magic[..6] != MAGIC {
             return Err(bad("not a .npy file (missing the \\x93NUMPY magic)".into()));
         }
-        let (header_len, start): (usize, usize) = match bytes[6] {
-            1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-            2 | 3 if bytes.len() >= 12 => (
-                u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+        let (header_len, start): (usize, usize) = match magic[6] {
+            1 => (u16::from_le_bytes([magic[8], magic[9]]) as usize, 10),
+            2 | 3 if magic.len() >= 12 => (
+                u32::from_le_bytes([magic[8], magic[9], magic[10], magic[11]]) as usize,
                 12,
             ),
-            v => return Err(bad(format!("unsupported .npy version {v}.{}", bytes[7]))),
+            v => return Err(bad(format!("unsupported .npy version {v}.{}", magic[7]))),
         };
-        let data_start = start
-            .checked_add(header_len)
-            .filter(|&e| e <= bytes.len())
-            .ok_or_else(|| {
-                bad(format!(
-                    "truncated .npy header: expected {} bytes, found {}",
-                    start as u64 + header_len as u64,
-                    bytes.len()
-                ))
-            })?;
+        if header_len > MAX_HEADER {
+            return Err(bad(format!(
+                "absurd .npy header length {header_len} (more than {MAX_HEADER} bytes)"
+            )));
+        }
+        let data_start = start + header_len;
+        let head = input.head(data_start).map_err(|e| Error::io(path, e))?;
+        if head.len() < data_start {
+            return Err(bad(format!(
+                "truncated .npy header: expected {data_start} bytes, found {}",
+                head.len()
+            )));
+        }
         let header = Lit {
-            s: &bytes[start..data_start],
+            s: &head[start..data_start],
             at: 0,
         }
         .parse()
@@ -205,12 +213,23 @@ impl SdfGrid {
             .filter(|&n| n <= 1 << 31);
         let count = count.ok_or_else(|| bad(format!("absurd shape ({nz}, {ny}, {nx})")))?;
         let expected = data_start as u64 + count * width as u64;
+        let mismatch = |found: String| {
+            bad(format!(
+                "shape ({nz}, {ny}, {nx}) of {} needs {expected} bytes, found {found}",
+                header.descr
+            ))
+        };
+        // a regular file is measured before reading; a stream is read up to one byte past
+        if let Some(found) = input.size().filter(|&n| n != expected) {
+            return Err(mismatch(found.to_string()));
+        }
+        let stream = input.size().is_none();
+        let bytes = input.rest(expected).map_err(|e| match e.kind() {
+            std::io::ErrorKind::InvalidData if stream => mismatch("more (not a regular file?)".into()),
+            _ => Error::io(path, e),
+        })?;
         if bytes.len() as u64 != expected {
-            return Err(bad(format!(
-                "shape ({nz}, {ny}, {nx}) of {} needs {expected} bytes, found {}",
-                header.descr,
-                bytes.len()
-            )));
+            return Err(mismatch(bytes.len().to_string()));
         }
         let data = &bytes[data_start..];
         let values: Vec<f64> = if width == 4 {

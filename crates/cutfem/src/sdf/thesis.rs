@@ -25,20 +25,24 @@ impl SdfGrid {
     ///
     /// Every problem is an error naming the file, never a panic: a truncated or over-long file
     /// (bytes expected vs found), a non-positive resolution or size, a node count over 2^31
-    /// (refused before allocating), and NaN or infinite values (the node is named).
+    /// (refused before allocating), and NaN or infinite values (the node is named). The header
+    /// alone decides how much is read ([`crate::input`]): a regular file's size is compared
+    /// with it before reading, a stream (a symlink to `/dev/zero`) is read to one byte past it.
     pub fn read_sdf(path: impl AsRef<Path>) -> Result<SdfGrid, Error> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         let bad = |msg: String| Error::format(path, msg);
-        if bytes.len() < HEADER {
+        // the header alone decides how much is read: an endless stream is never read whole
+        let mut input = crate::input::Input::open(path).map_err(|e| Error::io(path, e))?;
+        let head = input.head(HEADER).map_err(|e| Error::io(path, e))?;
+        if head.len() < HEADER {
             return Err(bad(format!(
                 "truncated .sdf header: expected at least {HEADER} bytes, found {}",
-                bytes.len()
+                head.len()
             )));
         }
-        let resolution = i32_at(&bytes, 0);
-        let offset = [i32_at(&bytes, 4), i32_at(&bytes, 8), i32_at(&bytes, 12)];
-        let size = [i32_at(&bytes, 16), i32_at(&bytes, 20), i32_at(&bytes, 24)];
+        let resolution = i32_at(head, 0);
+        let offset = [i32_at(head, 4), i32_at(head, 8), i32_at(head, 12)];
+        let size = [i32_at(head, 16), i32_at(head, 20), i32_at(head, 24)];
         if resolution <= 0 {
             return Err(bad(format!("resolution must be positive, found {resolution}")));
         }
@@ -54,17 +58,29 @@ impl SdfGrid {
             )));
         }
         let expected = HEADER as u64 + 4 * count;
-        if (bytes.len() as u64) < expected {
-            return Err(bad(format!(
-                "truncated .sdf file: size {size:?} needs {expected} bytes, found {}",
-                bytes.len()
-            )));
+        let mismatch = |found: u64| {
+            let what = if found < expected {
+                "truncated .sdf file"
+            } else {
+                "trailing data in .sdf file"
+            };
+            bad(format!(
+                "{what}: size {size:?} needs {expected} bytes, found {found}"
+            ))
+        };
+        // a regular file is measured before reading; a stream is read up to one byte past
+        if let Some(found) = input.size().filter(|&n| n != expected) {
+            return Err(mismatch(found));
         }
-        if (bytes.len() as u64) > expected {
-            return Err(bad(format!(
-                "trailing data in .sdf file: size {size:?} needs {expected} bytes, found {}",
-                bytes.len()
-            )));
+        let stream = input.size().is_none();
+        let bytes = input.rest(expected).map_err(|e| match e.kind() {
+            std::io::ErrorKind::InvalidData if stream => bad(format!(
+                "trailing data in .sdf file: size {size:?} needs {expected} bytes, found more (not a regular file?)"
+            )),
+            _ => Error::io(path, e),
+        })?;
+        if bytes.len() as u64 != expected {
+            return Err(mismatch(bytes.len() as u64));
         }
         let dims = size.map(|s| s as usize);
         let scale = 1.0 / resolution as f64;

@@ -198,8 +198,12 @@ mod tests {
             err.contains("wind.toml: line 8: [wind]: unknown field `tractio`"),
             "{err}"
         );
-        let err = model_err("[wind]\ntraction = [1.0, 0.0, nan]\n");
-        assert!(err.contains("[wind].traction: must be finite"), "{err}");
+        // a non-finite number is refused with the scene, naming the key (every section alike)
+        let err = scene("[wind]\ntraction = [1.0, 0.0, nan]\n").unwrap_err();
+        assert!(
+            err.contains("wind.toml: line 8: wind.traction[2]: not a finite number (nan)"),
+            "{err}"
+        );
     }
 
     /// A section or an effect name no effect claims is refused, naming the file and line.

@@ -1,0 +1,245 @@
+//! The checks of a parsed scene that do not fit a type: every float key finite (one place for
+//! all of them, extensions' sections included, naming the key and its line), step counts
+//! within what a run can hold ([`MAX_STEPS`]), the body given once, the model's effects backed
+//! by their sections, and the model's own ranges ([`crate::fem::Model::validate`]).
+
+use super::Scene;
+use crate::error::Error;
+use std::path::Path;
+use toml::de::{DeTable, DeValue};
+
+/// The most time steps a scene (or a `--steps` flag) may ask for. Every step's state is kept
+/// by a fit (its adjoint runs backwards through them) and every step's surface is written by
+/// `simulate`, so a count beyond this is a typo, not a run: a million steps of the smallest
+/// body already take hours.
+pub const MAX_STEPS: usize = 1_000_000;
+
+/// Errors unless `steps` (given by `key`, e.g. `time.steps` or `--steps`) is at most
+/// [`MAX_STEPS`].
+pub fn check_steps(steps: usize, key: &str) -> Result<(), String> {
+    if steps > MAX_STEPS {
+        return Err(format!(
+            "{key}: {steps} steps is more than the {MAX_STEPS} a run can hold (every step's state is kept); \
+             lower it or raise time.dt"
+        ));
+    }
+    Ok(())
+}
+
+/// Quotes at most `max` characters of `s` (an ellipsis marks the cut), for error messages
+/// that repeat a user's value.
+pub fn quote(s: &str, max: usize) -> String {
+    match s.char_indices().nth(max) {
+        Some((at, _)) => format!("{}…", &s[..at]),
+        None => s.to_string(),
+    }
+}
+
+/// The longest quoted value an error message repeats ([`shorten_quotes`]).
+pub const MAX_QUOTE: usize = 100;
+
+/// `msg` with every quoted part (between `"` or backticks; an unclosed quote runs to the end)
+/// longer than [`MAX_QUOTE`] characters cut with an ellipsis: an error names the bad value,
+/// it does not repeat a whole line of garbage.
+pub fn shorten_quotes(msg: &str) -> String {
+    let chars: Vec<char> = msg.chars().collect();
+    let mut out = String::with_capacity(msg.len().min(4 * MAX_QUOTE));
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i];
+        out.push(c);
+        i += 1;
+        if c != '"' && c != '`' {
+            continue;
+        }
+        // the quoted part: up to the same quote (a `\"` inside "..." is escaped)
+        let start = i;
+        while i < chars.len() && chars[i] != c {
+            i += if c == '"' && chars[i] == '\\' { 2 } else { 1 };
+        }
+        let end = i.min(chars.len());
+        let inner: String = chars[start..end].iter().collect();
+        out.push_str(&quote(&inner, MAX_QUOTE));
+        if i < chars.len() {
+            out.push(c);
+            i += 1;
+        }
+    }
+    out
+}
+
+/// `msg` without a prefix repeated in a row (`"s.toml: body.shape: body.shape: ..."` ->
+/// `"s.toml: body.shape: ..."`): layers that each name the key they checked may meet.
+pub fn dedupe_prefixes(msg: &str) -> String {
+    let mut parts: Vec<&str> = Vec::new();
+    for part in msg.split(": ") {
+        if parts.last() != Some(&part) || part.is_empty() {
+            parts.push(part);
+        }
+    }
+    parts.join(": ")
+}
+
+/// The first float of scene `text` that is not finite (`nan`, `inf`), as
+/// `"line N: key.path: not a finite number (nan)"`.
+pub fn non_finite(text: &str) -> Option<String> {
+    let table = DeTable::parse(text).ok()?;
+    let mut found = None;
+    walk_table(table.get_ref(), "", &mut |key, raw, span| {
+        if found.is_none() {
+            let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
+            found = Some(format!(
+                "line {line}: {key}: not a finite number ({})",
+                quote(raw, 20)
+            ));
+        }
+    });
+    found
+}
+
+type Visit<'a> = dyn FnMut(&str, &str, std::ops::Range<usize>) + 'a;
+
+fn walk_table(t: &DeTable<'_>, prefix: &str, visit: &mut Visit<'_>) {
+    for (k, v) in t {
+        let key = if prefix.is_empty() {
+            k.get_ref().to_string()
+        } else {
+            format!("{prefix}.{}", k.get_ref())
+        };
+        walk_value(v.get_ref(), v.span(), &key, visit);
+    }
+}
+
+fn walk_value(v: &DeValue<'_>, span: std::ops::Range<usize>, key: &str, visit: &mut Visit<'_>) {
+    match v {
+        DeValue::Float(f) => {
+            let raw = f.as_str();
+            // the parser refuses literals that overflow; nan and inf are what is left
+            if !raw.parse::<f64>().is_ok_and(f64::is_finite) {
+                visit(key, raw, span);
+            }
+        }
+        DeValue::Array(a) => {
+            for (i, x) in a.iter().enumerate() {
+                walk_value(x.get_ref(), x.span(), &format!("{key}[{i}]"), visit);
+            }
+        }
+        DeValue::Table(t) => walk_table(t, key, visit),
+        _ => {}
+    }
+}
+
+impl Scene {
+    /// The checks of the module docs; `text` is the file's content (for lines).
+    pub(super) fn check(&self, path: &Path, text: &str) -> Result<(), Error> {
+        if let Some(msg) = non_finite(text) {
+            return Err(Error::format(path, msg));
+        }
+        check_steps(self.time.steps, "time.steps").map_err(|e| Error::format(path, e))?;
+        let b = &self.body;
+        let given = [b.sdf.is_some(), b.mesh.is_some(), b.shape.is_some()]
+            .iter()
+            .filter(|&&x| x)
+            .count();
+        if given != 1 {
+            return Err(Error::format(
+                path,
+                "body: give exactly one of `sdf`, `mesh`, `shape`",
+            ));
+        }
+        if let Some(m) = &self.model {
+            for e in &m.effects {
+                // a name that is not a core effect is an extension's, checked by its layer
+                let section = match e.as_str() {
+                    "gravity" => self.gravity.is_some(),
+                    "damping" => self.damping.is_some(),
+                    "ground" => self.ground.is_some(),
+                    "initial_velocity" => self.initial.is_some(),
+                    "stiffness_field" => m.stiffness_field.is_some(),
+                    _ => true,
+                };
+                if !section {
+                    let name = match e.as_str() {
+                        "initial_velocity" => "initial",
+                        "stiffness_field" => "model.stiffness_field",
+                        other => other,
+                    };
+                    return Err(Error::format(
+                        path,
+                        format!(
+                            "model.effects: `{}` is listed but the scene has no [{name}] section",
+                            quote(e, 100)
+                        ),
+                    ));
+                }
+            }
+        }
+        self.numerics
+            .nitsche_penalty()
+            .map_err(|e| Error::format(path, e))?;
+        self.to_model()
+            .validate()
+            .map_err(|e| Error::format(path, e.to_string()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_the_first_non_finite_key_and_its_line() {
+        let text = "[body]\nx = 1.0\n[ground]\nnormal = [0.0, nan, 0.0]\n[time]\ndt = inf\n";
+        assert_eq!(
+            non_finite(text).unwrap(),
+            "line 4: ground.normal[1]: not a finite number (nan)"
+        );
+        let text = "[[dirichlet]]\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, -inf, 1.0]\n";
+        assert_eq!(
+            non_finite(text).unwrap(),
+            "line 3: dirichlet[0].max[1]: not a finite number (-inf)"
+        );
+        assert!(non_finite("[a]\nb = 1e300\nc = [1, 2.5]\n").is_none());
+    }
+
+    #[test]
+    fn quotes_are_cut_with_an_ellipsis() {
+        assert_eq!(quote("abc", 100), "abc");
+        let long = "é".repeat(150);
+        let q = quote(&long, 100);
+        assert_eq!(q.chars().count(), 101);
+        assert!(q.ends_with('…'));
+    }
+
+    #[test]
+    fn long_quoted_values_are_shortened() {
+        let long = "x".repeat(300);
+        let msg = format!("a.csv: line 2: y is not a number: \"{long}\" and `{long}`, `ok`");
+        let short = shorten_quotes(&msg);
+        let cut = format!("{}…", "x".repeat(MAX_QUOTE));
+        assert_eq!(
+            short,
+            format!("a.csv: line 2: y is not a number: \"{cut}\" and `{cut}`, `ok`")
+        );
+        assert_eq!(shorten_quotes(&format!("open \"{long}")), format!("open \"{cut}"));
+        assert_eq!(shorten_quotes("esc \"a\\\"b\" c"), "esc \"a\\\"b\" c");
+        assert_eq!(shorten_quotes("plain"), "plain");
+    }
+
+    #[test]
+    fn repeated_prefixes_are_said_once() {
+        assert_eq!(
+            dedupe_prefixes("s.toml: body.shape: body.shape: sphere needs a radius"),
+            "s.toml: body.shape: sphere needs a radius"
+        );
+        assert_eq!(dedupe_prefixes("a: b: a: c"), "a: b: a: c");
+        assert_eq!(dedupe_prefixes("plain"), "plain");
+    }
+
+    #[test]
+    fn steps_beyond_the_cap_are_refused_naming_the_key() {
+        assert!(check_steps(MAX_STEPS, "time.steps").is_ok());
+        let e = check_steps(100_000_000_000, "--steps").unwrap_err();
+        assert!(e.starts_with("--steps: 100000000000 steps"), "{e}");
+    }
+}
