@@ -298,7 +298,6 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
                 }
             }
         }
-        scan_magnitudes(&mut problem, base.x.len(), &mut start, best);
         let (x, ev) = fit_problem(&mut problem, &start, iterations)?;
         Ok((x, ev, problem))
     };
@@ -317,37 +316,6 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
             c.model = Some(model);
         }
         Err(e) => c.error = Some(e),
-    }
-}
-
-/// Decades tried per coordinate by [`scan_magnitudes`].
-const MAX_DECADES: usize = 8;
-
-/// Raises each of the effect's log coordinates of `start` (those from `first` on) by decades
-/// while the cost (`cost` at `start`) falls, at most [`MAX_DECADES`] each, within the box of
-/// [`ParamSet::bounds`]. An effect probed at a tiny neutral value (damping at 1e-4) is many
-/// e-folds from its value, and a log coordinate that far off moves about one e-fold per
-/// Levenberg-Marquardt iteration: the torus' mass damping (true 8) got from 1e-4 to 0.43 in
-/// the 8 iterations of a short refit, which then lost to a wrong effect. One forward run per
-/// decade tried.
-fn scan_magnitudes(problem: &mut Problem, first: usize, start: &mut [f64], mut cost: f64) {
-    let logs = problem.params.log_coordinates();
-    let bounds = problem.params.bounds(start);
-    for k in (first..start.len()).filter(|&k| logs[k]) {
-        for _ in 0..MAX_DECADES {
-            let mut x = start.to_vec();
-            x[k] += 10f64.ln();
-            if x[k] > bounds[k].1 {
-                break;
-            }
-            match problem.evaluate(&x) {
-                Ok(e) if e.cost < cost => {
-                    cost = e.cost;
-                    start[k] = x[k];
-                }
-                _ => break,
-            }
-        }
     }
 }
 
