@@ -57,7 +57,7 @@ impl Term {
             .iter()
             .filter(|f| f.1 != 0.0)
             .max_by(|a, b| {
-                let (a, b) = (decades(*a), decades(*b));
+                let (a, b) = (decades(a), decades(b));
                 if up {
                     a.total_cmp(&b)
                 } else {
