@@ -70,6 +70,12 @@ pub struct FrameCost {
     pub count: usize,
     /// points outside every deformed cell
     pub outside: usize,
+    /// `r^T W r` over the points that enter the Gauss-Newton matrix (within reach, positive
+    /// weight), with the same weights `W` as that matrix: the point's weight times the loss'
+    /// IRLS weight ([`crate::fit::uncertainty`])
+    pub weighted_squared: f64,
+    /// the number of those points (residual entries)
+    pub informative: usize,
 }
 
 impl FrameCost {
@@ -89,6 +95,10 @@ impl FrameCost {
         };
         for (pt, r) in points.iter().zip(residuals) {
             fc.outside += usize::from(r.is_none());
+            if let Some(r) = r.filter(|_| pt.weight > 0.0) {
+                fc.weighted_squared += pt.weight * robust.irls_weight(r) * r * r;
+                fc.informative += 1;
+            }
             let r = r.unwrap_or(outside_residual);
             fc.cost += pt.weight * robust.value(r);
             fc.sum_squared += r * r;
@@ -182,6 +192,8 @@ impl Cost for DisplacementCost {
             sum_squared: ss,
             count: u.rows(),
             outside: 0,
+            weighted_squared: w * ss,
+            informative: if *w > 0.0 { 3 * u.rows() } else { 0 },
         })
     }
 

@@ -48,7 +48,8 @@ pub fn scene_simulation(scene: &Scene) -> Result<Simulation, String> {
     let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
     let grid = Grid::new(sdf).map_err(|e| e.to_string())?;
     let model = scene_model(scene, &grid)?;
-    let mut sim = Simulation::new(grid, model).map_err(|e| e.to_string())?;
+    // a model that cannot be simulated names the scene and the key
+    let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", scene.path.display()))?;
     sim.solver = solver_settings(scene, sim.solver);
     Ok(sim)
 }
@@ -112,80 +113,18 @@ pub fn cameras_path(observations: &std::path::Path) -> std::path::PathBuf {
     observations.with_extension("cameras.json")
 }
 
-/// Reads the camera eyes of a camera file (index = camera id).
+/// Reads the camera eyes of a camera file (index = camera id), checked by
+/// [`crate::camera_file::CameraFile`].
 pub fn read_camera_eyes(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String> {
-    let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
-    let cams = v["cameras"]
-        .as_array()
-        .ok_or_else(|| format!("{}: no `cameras` list", path.display()))?;
-    let mut eyes = vec![[f64::NAN; 3]; cams.len()];
-    for (i, c) in cams.iter().enumerate() {
-        let id = c["id"].as_u64().unwrap_or(i as u64) as usize;
-        let eye: Option<Vec<f64>> = c["eye"]
-            .as_array()
-            .and_then(|a| a.iter().map(|x| x.as_f64()).collect());
-        match eye {
-            Some(e) if e.len() == 3 && e.iter().all(|x| x.is_finite()) && id < eyes.len() => {
-                eyes[id] = [e[0], e[1], e[2]]
-            }
-            _ => {
-                return Err(format!(
-                    "{}: cameras[{i}]: needs an id and an eye [x, y, z]",
-                    path.display()
-                ))
-            }
-        }
-    }
-    Ok(eyes)
+    Ok(crate::camera_file::CameraFile::read(path)?.eyes())
 }
 
-/// The largest image side of a camera file (as `observe --pixels`): residual pictures are
-/// rendered at that size.
-pub const MAX_CAMERA_PIXELS: u64 = 8192;
+pub use crate::camera_file::MAX_CAMERA_PIXELS;
 
 /// Reads the cameras of a camera file with their intrinsics (`eye`, `target`, `up`, `fov_y`,
-/// `width`, `height`; index = camera id).
+/// `width`, `height`; index = camera id), checked by [`crate::camera_file::CameraFile`].
 pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera>, String> {
-    let eyes = read_camera_eyes(path)?;
-    let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
-    let cams = v["cameras"].as_array().map(Vec::as_slice).unwrap_or(&[]);
-    let mut out = Vec::with_capacity(eyes.len());
-    for (i, eye) in eyes.iter().enumerate() {
-        let c = cams
-            .iter()
-            .find(|c| c["id"].as_u64() == Some(i as u64))
-            .or_else(|| cams.get(i))
-            .ok_or_else(|| format!("{}: no camera {i}", path.display()))?;
-        let v3 = |key: &str| -> Option<[f64; 3]> {
-            let a = c[key].as_array()?;
-            let a: Vec<f64> = a.iter().map(|x| x.as_f64()).collect::<Option<_>>()?;
-            (a.len() == 3).then(|| [a[0], a[1], a[2]])
-        };
-        let bad = |key: &str| format!("{}: cameras[{i}].{key}: missing or invalid", path.display());
-        let pixels = |key: &str| match c[key].as_u64() {
-            Some(n @ 1..=MAX_CAMERA_PIXELS) => Ok(n as usize),
-            _ => Err(format!(
-                "{}: cameras[{i}].{key}: not an integer in 1..={MAX_CAMERA_PIXELS}",
-                path.display()
-            )),
-        };
-        out.push(crate::observe::Camera {
-            eye: *eye,
-            target: v3("target").ok_or_else(|| bad("target"))?,
-            up: v3("up").unwrap_or([0.0, 1.0, 0.0]),
-            fov_y: c["fov_y"]
-                .as_f64()
-                .filter(|f| *f > 0.0 && *f < std::f64::consts::PI)
-                .ok_or_else(|| bad("fov_y"))?,
-            width: pixels("width")?,
-            height: pixels("height")?,
-        });
-    }
-    Ok(out)
+    crate::camera_file::CameraFile::read(path)?.cameras()
 }
 
 /// The point-cloud reconstruction problem of a scene: its simulation, `steps` steps (default:
@@ -523,84 +462,4 @@ pub fn gradcheck(problem: &mut Problem, rel_step: f64) -> Result<Vec<GradCheck>,
     Ok(out)
 }
 
-/// Inverts a small symmetric positive definite matrix (`n x n`, row-major) by Gauss-Jordan
-/// elimination with partial pivoting; `None` when it is singular.
-pub fn invert_small(a: &[f64], n: usize) -> Option<Vec<f64>> {
-    let mut m = a.to_vec();
-    let mut inv = vec![0.0; n * n];
-    for i in 0..n {
-        inv[i * n + i] = 1.0;
-    }
-    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
-    for col in 0..n {
-        let piv = (col..n).max_by(|&x, &y| m[x * n + col].abs().total_cmp(&m[y * n + col].abs()))?;
-        if m[piv * n + col].abs() <= 1e-14 * scale {
-            return None;
-        }
-        for k in 0..n {
-            m.swap(col * n + k, piv * n + k);
-            inv.swap(col * n + k, piv * n + k);
-        }
-        let d = 1.0 / m[col * n + col];
-        for k in 0..n {
-            m[col * n + k] *= d;
-            inv[col * n + k] *= d;
-        }
-        for r in 0..n {
-            if r != col {
-                let f = m[r * n + col];
-                if f != 0.0 {
-                    for k in 0..n {
-                        m[r * n + k] -= f * m[col * n + k];
-                        inv[r * n + k] -= f * inv[col * n + k];
-                    }
-                }
-            }
-        }
-    }
-    Some(inv)
-}
-
-/// First-order uncertainty of a fit (squared loss).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Uncertainty {
-    /// component labels ([`ParamSet::labels`])
-    pub labels: Vec<String>,
-    /// standard errors of the reported quantities, per label
-    pub std_errors: Vec<f64>,
-    /// covariance of `x` (`n x n`, row-major)
-    pub cov_x: Vec<f64>,
-    /// `d quantity / d x_k` ([`ParamSet::x_scales`])
-    pub scales: Vec<f64>,
-}
-
-/// First-order standard errors of the fitted quantities at `x` (squared loss): the covariance
-/// `s^2 H^{-1}` with the Gauss-Newton matrix `H = J^T J` of the tangent-linear pass and the
-/// residual variance `s^2 = sum r^2 / (N - n)` of the `N` residuals, mapped to the reported
-/// quantities by [`ParamSet::x_scales`]. `None` when `H` is singular (a parameter the data do
-/// not determine) or there are no more residuals than parameters.
-pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<Option<Uncertainty>, String> {
-    let n = x.len();
-    let count: usize = ev.frames.iter().map(|f| f.count - f.outside).sum();
-    if count <= n {
-        return Ok(None);
-    }
-    let sum_sq: f64 = ev.frames.iter().map(|f| f.sum_squared).sum();
-    let s2 = sum_sq / (count - n) as f64;
-    let h = problem.gauss_newton_matrix(x).map_err(|e| e.to_string())?;
-    let Some(inv) = invert_small(&h, n) else {
-        return Ok(None);
-    };
-    let model = problem.model_at(x);
-    let scales = problem.params.x_scales(&model);
-    let cov_x: Vec<f64> = inv.iter().map(|v| v * s2).collect();
-    let std_errors = (0..n)
-        .map(|k| scales[k] * cov_x[k * n + k].max(0.0).sqrt())
-        .collect();
-    Ok(Some(Uncertainty {
-        labels: problem.params.labels(),
-        std_errors,
-        cov_x,
-        scales,
-    }))
-}
+pub use crate::statistics::{invert_small, uncertainty, Uncertainty};

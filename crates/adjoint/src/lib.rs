@@ -20,12 +20,15 @@
 //! * [`optim`]: Barzilai-Borwein gradient descent, L-BFGS, Levenberg-Marquardt, all
 //!   tolerant of diverging evaluations;
 //! * [`observe`] and [`observations`]: virtual RGB-D cameras and the observation CSV;
+//!   [`camera_file`]: the camera file beside a CSV, checked against it;
 //! * [`fit`]: a scene's reconstruction problem, the optimizer objective, `gradcheck`;
+//! * [`statistics`]: standard errors of a fit, weighted consistently;
 //! * [`refine`]: the discretisation share of the error (the same state at `r/2`, `r`, `2r`);
 //! * [`diagnosis`]: the effects as first-class parts of the model; where a fitted model fails
 //!   and which effect is missing (score tests, short refits, BIC).
 
 pub mod backward;
+pub mod camera_file;
 pub mod cost;
 pub mod cost_mesh;
 pub mod diagnosis;
@@ -37,4 +40,5 @@ pub mod optim;
 pub mod params;
 pub mod problem;
 pub mod refine;
+pub mod statistics;
 pub mod tangent;

@@ -14,7 +14,8 @@
 //! one point with exactly one field per column: `frame` a non-negative integer (the state
 //! after that many steps; frame 0 is the reference configuration), `x, y, z` finite world
 //! coordinates, `camera` a non-negative integer or empty (no camera), `weight` a finite,
-//! non-negative number (default 1 when the column is absent). Any number of points per
+//! non-negative number, 0 or at least `f64::MIN_POSITIVE` (default 1 when the column is
+//! absent; weights are relative, see [`crate::fit::uncertainty`]). Any number of points per
 //! frame; frames may be missing and need not be sorted. A line that cannot be parsed is an
 //! error naming the file, the line number and the problem, never skipped.
 //!
@@ -78,6 +79,13 @@ pub enum ObservationError {
     },
 }
 
+/// The smallest largest weight a usable observation set may have: `sqrt(f64::MIN_POSITIVE)`
+/// (about 1.5e-154). The optimizer squares gradients and Gauss-Newton entries, which carry one
+/// weight each; below this their squares are subnormal or zero and the fit "converges" where
+/// it started. Weights are relative (a fit and its standard errors do not change when all are
+/// scaled), so such a set is refused with the advice to rescale it.
+pub const MIN_USEFUL_WEIGHT: f64 = 1.4916681462400413e-154;
+
 /// The header a file is expected to have (for messages).
 const EXPECTED: &str = "frame,x,y,z[,camera][,weight]";
 
@@ -140,6 +148,63 @@ impl Observations {
     /// Sum of the weights of all points.
     pub fn total_weight(&self) -> f64 {
         self.frames.values().flatten().map(|p| p.weight).sum()
+    }
+
+    /// Errors, naming `path`, unless some point can inform a fit of `steps` steps: a point
+    /// informs it when its weight is positive and its frame lies in `1..=steps` (frame 0 is the
+    /// reference configuration, which no parameter changes; a frame beyond the steps is never
+    /// simulated). The largest weight of those points must be at least [`MIN_USEFUL_WEIGHT`].
+    /// The message counts the points of each kind that cannot.
+    pub fn check_informative(&self, path: &Path, steps: usize) -> Result<(), String> {
+        let (mut total, mut zero, mut at0, mut beyond, mut usable) = (0usize, 0usize, 0usize, 0usize, 0usize);
+        let mut w_max = 0.0f64;
+        for (f, pts) in self.frames() {
+            for p in pts {
+                total += 1;
+                if p.weight.is_nan() || p.weight <= 0.0 {
+                    zero += 1;
+                } else if f == 0 {
+                    at0 += 1;
+                } else if f > steps {
+                    beyond += 1;
+                } else {
+                    usable += 1;
+                    w_max = w_max.max(p.weight);
+                }
+            }
+        }
+        let file = path.display();
+        if total == 0 {
+            return Err(format!(
+                "{file}: no observed point (only a header): nothing to fit"
+            ));
+        }
+        if usable == 0 {
+            let mut why = Vec::new();
+            if zero > 0 {
+                why.push(format!("{zero} have weight 0"));
+            }
+            if at0 > 0 {
+                why.push(format!(
+                    "{at0} lie at frame 0 (the reference configuration, which no parameter changes)"
+                ));
+            }
+            if beyond > 0 {
+                why.push(format!("{beyond} lie beyond the {steps} simulated steps"));
+            }
+            return Err(format!(
+                "{file}: none of the {total} observed points can inform the fit: {}; \
+                 observations need a positive weight and a frame in 1..={steps}",
+                why.join(", ")
+            ));
+        }
+        if w_max < MIN_USEFUL_WEIGHT {
+            return Err(format!(
+                "{file}: the largest weight of the {usable} usable points is {w_max:e}, below {MIN_USEFUL_WEIGHT:e}: \
+                 the squares of the cost's terms underflow; rescale the weights (only their ratios matter)"
+            ));
+        }
+        Ok(())
     }
 
     /// Reads a CSV file (see the module docs for the format).
@@ -326,6 +391,14 @@ fn parse_line(line: &str, columns: &[Column]) -> Result<(usize, ObservedPoint), 
                 if w < 0.0 {
                     return Err(format!("negative weight {w}"));
                 }
+                if w > 0.0 && w < f64::MIN_POSITIVE {
+                    // a subnormal weight: its products with squared residuals underflow to 0
+                    return Err(format!(
+                        "weight {w:e} is subnormal (below {:e}): it cannot weigh a point; \
+                         use 0 to drop the point or rescale all weights",
+                        f64::MIN_POSITIVE
+                    ));
+                }
                 point.weight = w;
             }
         }
@@ -339,6 +412,30 @@ mod tests {
 
     fn parse(text: &str) -> Result<Observations, String> {
         Observations::parse_csv(text, Path::new("obs.csv")).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn data_that_cannot_inform_a_fit_are_named() {
+        let check = |text: &str| parse(text).unwrap().check_informative(Path::new("o.csv"), 4);
+        check("frame,x,y,z\n1,0,0,0\n").unwrap();
+        check("frame,x,y,z,weight\n4,0,0,0,1e-150\n0,0,0,0,1\n").unwrap();
+        let e = check("frame,x,y,z,weight\n1,0,0,0,0\n0,0,0,0,2\n").unwrap_err();
+        assert!(
+            e.starts_with(
+                "o.csv: none of the 2 observed points can inform the fit: 1 have weight 0, 1 lie at frame 0"
+            ),
+            "{e}"
+        );
+        let e = check("frame,x,y,z,weight\n2,0,0,0,1e-160\n").unwrap_err();
+        assert!(
+            e.contains("largest weight of the 1 usable points is 1e-160"),
+            "{e}"
+        );
+        let e = check("frame,x,y,z\n9,0,0,0\n").unwrap_err();
+        assert!(e.contains("1 lie beyond the 4 simulated steps"), "{e}");
+        assert!(check("frame,x,y,z\n").unwrap_err().contains("no observed point"));
+        let e = parse("frame,x,y,z,weight\n1,0,0,0,5e-324\n").unwrap_err();
+        assert!(e.contains("line 2: weight 5e-324 is subnormal"), "{e}");
     }
 
     #[test]

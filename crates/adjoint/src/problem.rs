@@ -211,8 +211,9 @@ impl Problem {
                 let m = self.sim.max_displacement();
                 if !m.is_finite() || m > self.divergence_limit {
                     return Err(ProblemError::Diverged(format!(
-                        "step {t}: displacement {m:.3e} exceeds {:.3e}",
-                        self.divergence_limit
+                        "step {t}: displacement {m:.3e} exceeds {:.3e} ({})",
+                        self.divergence_limit,
+                        self.sim.scales_note()
                     )));
                 }
                 if let Some(tr) = &mut traj {

@@ -11,7 +11,7 @@ use crate::progress;
 use adjoint::cost::Robust;
 use adjoint::diagnosis::history::{self, Entry};
 use adjoint::diagnosis::{diagnose, DiagnoseParams, Diagnosis, Setup};
-use adjoint::fit::{cameras_path, read_cameras, CostKind};
+use adjoint::fit::CostKind;
 use adjoint::observations::Observations;
 use adjoint::observe::Camera;
 use adjoint::params::ParamSet;
@@ -200,6 +200,7 @@ pub fn run(args: Args) -> Result<(), String> {
         kind,
         observations,
         eyes,
+        cameras: camera_file,
         ..
     } = args.problem.load()?;
     if kind != CostKind::Surface {
@@ -211,16 +212,9 @@ pub fn run(args: Args) -> Result<(), String> {
             args.problem.observations.display()
         ));
     }
-    let cameras = match &args.problem.cameras {
-        Some(p) => read_cameras(p)?,
-        None => {
-            let p = cameras_path(&args.problem.observations);
-            if p.exists() {
-                read_cameras(&p)?
-            } else {
-                Vec::new()
-            }
-        }
+    let cameras = match &camera_file {
+        Some(f) => f.cameras()?,
+        None => Vec::new(),
     };
     let out = args
         .out

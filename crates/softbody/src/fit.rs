@@ -145,6 +145,7 @@ pub fn run(args: Args) -> Result<(), String> {
         kind,
         observations: obs,
         eyes,
+        ..
     } = args.problem.load()?;
     let optimizer: Optimizer = args
         .optimizer

@@ -1,7 +1,8 @@
 //! What `fit` and `gradcheck` share: the scene, the observations, the fitted parameters, the
 //! cost and the camera file, read and checked the same way.
 
-use adjoint::fit::{cameras_path, check_frames, read_camera_eyes, CostKind};
+use adjoint::camera_file::CameraFile;
+use adjoint::fit::{cameras_path, check_frames, CostKind};
 use adjoint::observations::Observations;
 use adjoint::params::ParamSet;
 use cutfem::scene::Scene;
@@ -46,11 +47,16 @@ pub struct Loaded {
     pub observations: Observations,
     /// the camera eyes (empty when unknown)
     pub eyes: Vec<[f64; 3]>,
+    /// the camera file (`--cameras`, else OBS.cameras.json when it exists), checked against
+    /// the observations
+    pub cameras: Option<CameraFile>,
 }
 
 impl ProblemArgs {
     /// Reads the scene, its `[fit]` section, the parameters, the cost, the observations and the
-    /// cameras; every failure is one line naming the file, line, key or flag.
+    /// cameras; every failure is one line naming the file, line, key or flag. The observations
+    /// must be able to inform a fit ([`Observations::check_informative`]) and the camera file
+    /// must name every camera they use ([`CameraFile::check_used`]).
     pub fn load(&self) -> Result<Loaded, String> {
         let scene = Scene::load(&self.scene).map_err(|e| e.to_string())?;
         let n_steps = steps(self.steps, &scene)?;
@@ -64,17 +70,21 @@ impl ProblemArgs {
         let kind: CostKind = self.cost.parse().map_err(|e| format!("--cost: {e}"))?;
         let observations = Observations::read_csv(&self.observations).map_err(|e| e.to_string())?;
         check_frames(&observations, &self.observations, n_steps)?;
-        let eyes = match &self.cameras {
-            Some(p) => read_camera_eyes(p)?,
-            None => {
-                let p = cameras_path(&self.observations);
-                if p.exists() {
-                    read_camera_eyes(&p)?
-                } else {
-                    Vec::new()
-                }
-            }
+        // data that cannot inform a fit are refused here, for every command
+        observations.check_informative(&self.observations, n_steps)?;
+        let path = match &self.cameras {
+            Some(p) => Some(p.clone()),
+            None => Some(cameras_path(&self.observations)).filter(|p| p.exists()),
         };
+        let cameras = match path {
+            Some(p) => {
+                let file = CameraFile::read(&p)?;
+                file.check_used(&observations, &self.observations)?;
+                Some(file)
+            }
+            None => None,
+        };
+        let eyes = cameras.as_ref().map_or_else(Vec::new, CameraFile::eyes);
         Ok(Loaded {
             scene,
             section,
@@ -82,6 +92,7 @@ impl ProblemArgs {
             kind,
             observations,
             eyes,
+            cameras,
         })
     }
 }

@@ -156,7 +156,8 @@ pub fn run(a: Args) -> Result<(), String> {
         fallbacks += info.fallback as usize;
         if !sim.u.as_slice().iter().all(gpumat::Scalar::is_finite) {
             return Err(format!(
-                "step {f}: the simulation diverged (non-finite displacement); reduce time.dt"
+                "step {f}: the simulation diverged (non-finite displacement); reduce time.dt ({})",
+                sim.scales_note()
             ));
         }
         // sec. 4.4.5: diffuse into the empty band, advect the level set

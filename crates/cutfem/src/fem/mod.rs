@@ -6,6 +6,7 @@ pub mod collision;
 pub mod element;
 pub mod grid;
 pub mod model;
+pub mod plausible;
 pub mod sim;
 pub mod solver;
 pub mod tet;

@@ -30,6 +30,7 @@ use super::collision::{add_ground_forces, crossings, Crossing};
 use super::element::POLAR_ITERATIONS;
 use super::grid::Grid;
 use super::model::Model;
+use super::plausible::extent;
 use super::solver::LinearSolver;
 pub use super::solver::{solve, Preconditioner, SolverSettings};
 use crate::error::Error;
@@ -108,6 +109,7 @@ impl Simulation {
     /// with the model's initial velocity.
     pub fn new(grid: Grid, model: Model) -> Result<Self, Error> {
         model.validate()?;
+        model.check_plausible(grid.h(), extent(&grid))?;
         model.check_external_dofs(grid.dofs())?;
         if let Some(s) = &model.stiffness_scale {
             if s.len() != grid.cells.len() {
@@ -319,7 +321,10 @@ impl Simulation {
 
         let t3 = Instant::now();
         let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);
-        let si = self.linear.solve(&self.a, &self.b, &mut x, &self.solver)?;
+        let si = self
+            .linear
+            .solve(&self.a, &self.b, &mut x, &self.solver)
+            .map_err(|e| Error::Invalid(format!("{e}; {}", self.scales_note())))?;
         info.iterations = si.iterations;
         info.residual = si.residual;
         info.fallback = si.fallback;
@@ -334,6 +339,12 @@ impl Simulation {
         self.u = x;
         self.steps += 1;
         Ok(info)
+    }
+
+    /// The scales of the current model and the parameters that dominate them
+    /// ([`Model::scales_note`]), for the error of a step that failed.
+    pub fn scales_note(&self) -> String {
+        self.model.scales_note(self.grid.h(), extent(&self.grid))
     }
 
     /// The stages of a step before the solve, for the current state `(u, v)`: rotations and

@@ -1,0 +1,325 @@
+//! Camera files: the cameras that saw an observation CSV's points, read and checked in one
+//! place for every command (`fit`, `gradcheck`, `diagnose`).
+//!
+//! # Format
+//!
+//! `softbody observe` writes one beside its CSV (`obs.csv` -> `obs.cameras.json`):
+//!
+//! ```text
+//! {"cameras": [{"id": 0, "eye": [x, y, z], "target": [x, y, z], "up": [x, y, z],
+//!               "fov_y": 0.8, "width": 64, "height": 64}, ...]}
+//! ```
+//!
+//! Every camera needs an `eye` (a finite 3-vector); its `id` (default: its position in the
+//! list) is a non-negative integer, each id once, and the ids are `0..N` for `N` cameras (the id
+//! indexes the camera). The intrinsics are optional for a fit (it needs only the eyes, for the
+//! viewing rays) and required for `diagnose`'s pictures; where given they are checked:
+//! `target` and `up` finite 3-vectors, `target` not the eye, `fov_y` in `(0, pi)` radians,
+//! `width` and `height` integers in `1..=`[`MAX_CAMERA_PIXELS`].
+//!
+//! [`CameraFile::check_used`] then checks the file against the CSV: every camera id a point
+//! names must be in the file (a point whose camera is unknown would silently be measured to the
+//! closest surface point instead of along its ray). Every error names the file, the camera
+//! (`cameras[i]`, its id) and the key.
+
+use crate::observations::Observations;
+use crate::observe::Camera;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// The largest image side of a camera file (as `observe --pixels`): residual pictures are
+/// rendered at that size.
+pub const MAX_CAMERA_PIXELS: u64 = 8192;
+
+/// One camera of a file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraEntry {
+    /// the eye (centre of projection)
+    pub eye: [f64; 3],
+    /// the point looked at
+    pub target: Option<[f64; 3]>,
+    /// the world up direction
+    pub up: Option<[f64; 3]>,
+    /// vertical field of view, radians
+    pub fov_y: Option<f64>,
+    /// image width, pixels
+    pub width: Option<usize>,
+    /// image height, pixels
+    pub height: Option<usize>,
+}
+
+/// A checked camera file (module docs); `cameras[id]` is the camera of that id.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraFile {
+    /// the file
+    pub path: PathBuf,
+    /// the cameras, indexed by id
+    pub cameras: Vec<CameraEntry>,
+}
+
+impl CameraFile {
+    /// Reads and checks a camera file (bounded like every configuration file).
+    pub fn read(path: &Path) -> Result<Self, String> {
+        let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses and checks camera file text; `path` names the file in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, String> {
+        let file = path.display();
+        let v: Value = serde_json::from_str(text).map_err(|e| format!("{file}: {e}"))?;
+        let cams = v["cameras"]
+            .as_array()
+            .ok_or_else(|| format!("{file}: no `cameras` list"))?;
+        let n = cams.len();
+        let mut slots: Vec<Option<(usize, CameraEntry)>> = vec![None; n];
+        for (i, c) in cams.iter().enumerate() {
+            let id = match &c["id"] {
+                Value::Null => i,
+                v => match v.as_u64() {
+                    Some(id) if (id as usize) < n => id as usize,
+                    Some(id) => {
+                        return Err(format!(
+                            "{file}: cameras[{i}].id: {id}, but the {n} cameras need the ids 0..={} (the id indexes the camera)",
+                            n - 1
+                        ))
+                    }
+                    None => {
+                        return Err(format!(
+                            "{file}: cameras[{i}].id: not a non-negative integer: {}",
+                            cutfem::scene::quote(&v.to_string(), 40)
+                        ))
+                    }
+                },
+            };
+            let at = |key: &str| format!("{file}: cameras[{i}].{key}");
+            let cam = format!("(camera id {id})");
+            if let Some((j, _)) = &slots[id] {
+                return Err(format!(
+                    "{}: {id} is used twice (cameras[{j}] and cameras[{i}]); every camera needs its own id",
+                    at("id")
+                ));
+            }
+            let vector = |key: &str| -> Result<Option<[f64; 3]>, String> {
+                match &c[key] {
+                    Value::Null => Ok(None),
+                    Value::Array(a) if a.len() == 3 => {
+                        let xs: Option<Vec<f64>> = a.iter().map(Value::as_f64).collect();
+                        match xs {
+                            Some(x) if x.iter().all(|x| x.is_finite()) => Ok(Some([x[0], x[1], x[2]])),
+                            _ => Err(format!("{}: not three finite numbers {cam}", at(key))),
+                        }
+                    }
+                    _ => Err(format!("{}: not a list [x, y, z] {cam}", at(key))),
+                }
+            };
+            let eye = vector("eye")?.ok_or_else(|| {
+                format!(
+                    "{}: missing: every camera needs an eye [x, y, z] {cam}",
+                    at("eye")
+                )
+            })?;
+            let target = vector("target")?;
+            if target == Some(eye) {
+                return Err(format!(
+                    "{}: equals the eye: the camera looks nowhere {cam}",
+                    at("target")
+                ));
+            }
+            let up = vector("up")?;
+            let fov_y = match &c["fov_y"] {
+                Value::Null => None,
+                v => match v.as_f64() {
+                    Some(f) if f > 0.0 && f < std::f64::consts::PI => Some(f),
+                    _ => {
+                        return Err(format!(
+                            "{}: must be an angle in (0, pi) radians, found {} {cam}",
+                            at("fov_y"),
+                            cutfem::scene::quote(&v.to_string(), 40)
+                        ))
+                    }
+                },
+            };
+            let pixels = |key: &str| match &c[key] {
+                Value::Null => Ok(None),
+                v => match v.as_u64() {
+                    Some(p @ 1..=MAX_CAMERA_PIXELS) => Ok(Some(p as usize)),
+                    _ => Err(format!(
+                        "{}: not an integer in 1..={MAX_CAMERA_PIXELS} {cam}",
+                        at(key)
+                    )),
+                },
+            };
+            let entry = CameraEntry {
+                eye,
+                target,
+                up,
+                fov_y,
+                width: pixels("width")?,
+                height: pixels("height")?,
+            };
+            slots[id] = Some((i, entry));
+        }
+        // n entries with distinct ids below n fill every slot
+        let cameras = slots.into_iter().flatten().map(|(_, c)| c).collect();
+        Ok(CameraFile {
+            path: path.to_path_buf(),
+            cameras,
+        })
+    }
+
+    /// The eyes, indexed by camera id.
+    pub fn eyes(&self) -> Vec<[f64; 3]> {
+        self.cameras.iter().map(|c| c.eye).collect()
+    }
+
+    /// The cameras with their intrinsics, indexed by id; errors naming the camera and key when
+    /// one lacks `target`, `fov_y`, `width` or `height` (`up` defaults to +y).
+    pub fn cameras(&self) -> Result<Vec<Camera>, String> {
+        self.cameras
+            .iter()
+            .enumerate()
+            .map(|(id, c)| -> Result<Camera, String> {
+                let missing = |key: &str| {
+                    format!(
+                        "{}: camera id {id}: `{key}` missing (pictures need target, fov_y, width and height)",
+                        self.path.display()
+                    )
+                };
+                Ok(Camera {
+                    eye: c.eye,
+                    target: c.target.ok_or_else(|| missing("target"))?,
+                    up: c.up.unwrap_or([0.0, 1.0, 0.0]),
+                    fov_y: c.fov_y.ok_or_else(|| missing("fov_y"))?,
+                    width: c.width.ok_or_else(|| missing("width"))?,
+                    height: c.height.ok_or_else(|| missing("height"))?,
+                })
+            })
+            .collect()
+    }
+
+    /// Errors unless every camera id that a point of `observations` (read from `csv`) names is
+    /// in the file; the message names both files, the id and the CSV line that uses it.
+    pub fn check_used(&self, observations: &Observations, csv: &Path) -> Result<(), String> {
+        let missing = observations
+            .frames()
+            .flat_map(|(_, p)| p.iter())
+            .filter_map(|p| p.camera)
+            .filter(|&c| c as usize >= self.cameras.len())
+            .min();
+        let Some(id) = missing else { return Ok(()) };
+        let line = camera_line(csv, id).map_or(String::new(), |l| format!(":{l}"));
+        Err(format!(
+            "{}{line}: camera {id}: no camera with `id` {id} in {} (it has {} cameras, ids 0..{}); \
+             give the camera file that belongs to these observations (--cameras)",
+            csv.display(),
+            self.path.display(),
+            self.cameras.len(),
+            self.cameras.len()
+        ))
+    }
+}
+
+/// The first line (1-based) of an observation CSV whose camera is `id`, if any.
+fn camera_line(path: &Path, id: u32) -> Option<usize> {
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES).ok()?;
+    let mut lines = text.lines().enumerate();
+    let header = lines.next()?.1;
+    let col = header
+        .trim_start_matches('\u{feff}')
+        .split(',')
+        .position(|c| c.trim().eq_ignore_ascii_case("camera"))?;
+    lines
+        .find(|(_, l)| l.split(',').nth(col).and_then(|f| f.trim().parse::<u32>().ok()) == Some(id))
+        .map(|(i, _)| i + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<CameraFile, String> {
+        CameraFile::parse(text, Path::new("c.json"))
+    }
+
+    #[test]
+    fn ids_index_the_cameras_once_each() {
+        let f = parse(r#"{"cameras": [{"id": 1, "eye": [1, 0, 0]}, {"id": 0, "eye": [0, 0, 0]}]}"#).unwrap();
+        assert_eq!(f.eyes(), vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]);
+        let f = parse(r#"{"cameras": [{"eye": [1, 0, 0]}, {"eye": [2, 0, 0]}]}"#).unwrap();
+        assert_eq!(f.eyes()[1], [2.0, 0.0, 0.0]);
+        let e =
+            parse(r#"{"cameras": [{"id": 0, "eye": [1, 0, 0]}, {"id": 0, "eye": [2, 0, 0]}]}"#).unwrap_err();
+        assert!(
+            e.starts_with("c.json: cameras[1].id: 0 is used twice (cameras[0] and cameras[1])"),
+            "{e}"
+        );
+        let e = parse(r#"{"cameras": [{"id": 5, "eye": [1, 0, 0]}]}"#).unwrap_err();
+        assert!(
+            e.starts_with("c.json: cameras[0].id: 5, but the 1 cameras need the ids 0..=0"),
+            "{e}"
+        );
+        let e = parse(r#"{"cameras": [{"id": -1, "eye": [1, 0, 0]}]}"#).unwrap_err();
+        assert!(e.contains("cameras[0].id: not a non-negative integer"), "{e}");
+    }
+
+    #[test]
+    fn poses_and_intrinsics_are_finite_and_positive() {
+        let cam = |extra: &str| format!(r#"{{"cameras": [{{"id": 0, "eye": [0, 3, 0]{extra}}}]}}"#);
+        for (extra, needle) in [
+            (r#", "target": [0, 3, 0]"#, "cameras[0].target: equals the eye"),
+            (
+                r#", "target": [0, "a", 0]"#,
+                "cameras[0].target: not three finite numbers (camera id 0)",
+            ),
+            (r#", "up": [0, 1]"#, "cameras[0].up: not a list [x, y, z]"),
+            (
+                r#", "fov_y": 0"#,
+                "cameras[0].fov_y: must be an angle in (0, pi) radians, found 0",
+            ),
+            (
+                r#", "fov_y": 4.0"#,
+                "cameras[0].fov_y: must be an angle in (0, pi)",
+            ),
+            (r#", "width": 0"#, "cameras[0].width: not an integer in 1..=8192"),
+            (
+                r#", "height": 1.5"#,
+                "cameras[0].height: not an integer in 1..=8192",
+            ),
+        ] {
+            let e = parse(&cam(extra)).unwrap_err();
+            assert!(e.contains(needle), "{extra}: {e}");
+            assert!(e.starts_with("c.json: "), "{e}");
+        }
+        let e = parse(r#"{"cameras": [{"id": 0, "eye": [0, 1e400, 0]}]}"#).unwrap_err();
+        assert!(e.contains("c.json"), "{e}");
+        let e = parse(r#"{"cameras": [{"id": 0}]}"#).unwrap_err();
+        assert!(e.contains("cameras[0].eye: missing"), "{e}");
+        // a fit needs only the eyes; pictures need the intrinsics
+        let f = parse(&cam("")).unwrap();
+        assert!(f.cameras().unwrap_err().contains("camera id 0: `target` missing"));
+        let f = parse(&cam(
+            r#", "target": [0, 0, 0], "fov_y": 0.8, "width": 8, "height": 6"#,
+        ))
+        .unwrap();
+        assert_eq!(f.cameras().unwrap()[0].height, 6);
+    }
+
+    #[test]
+    fn every_camera_the_csv_uses_is_in_the_file() {
+        let f = parse(r#"{"cameras": [{"id": 0, "eye": [0, 3, 0]}]}"#).unwrap();
+        let mut obs = Observations::new();
+        let mut p = crate::observations::ObservedPoint::new([0.0; 3]);
+        p.camera = Some(0);
+        obs.push(1, p);
+        f.check_used(&obs, Path::new("none.csv")).unwrap();
+        p.camera = Some(3);
+        obs.push(2, p);
+        let e = f.check_used(&obs, Path::new("none.csv")).unwrap_err();
+        assert!(
+            e.starts_with("none.csv: camera 3: no camera with `id` 3 in c.json"),
+            "{e}"
+        );
+    }
+}

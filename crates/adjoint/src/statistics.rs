@@ -1,0 +1,136 @@
+//! First-order statistics of a fit: the covariance and standard errors of the fitted
+//! parameters from the Gauss-Newton matrix at the result.
+//!
+//! # The weighted least-squares model
+//!
+//! The fit minimises `J(x) = 1/2 sum_i w_i r_i(x)^2` over the residuals `r_i` of the observed
+//! points (distances to the simulated surface) with the weights `w_i` of the CSV. The weights
+//! are *relative precisions* (analytic weights): point `i` has variance `sigma^2 / w_i` with one
+//! unknown `sigma^2` for the whole set. With the sensitivities `A = dr/dx` (`n_pts x p`, from
+//! the tangent-linear pass) and `W = diag(w_i)` (times the loss' IRLS weight `rho'(r)/r`, 1 for
+//! squares), the first-order covariance of the estimate is
+//!
+//! `Cov(x) = s^2 H^{-1}`, `H = A^T W A`, `s^2 = r^T W r / (n - p)`,
+//!
+//! where the sum `r^T W r` and the count `n` run over the *same* points as `H`: those within
+//! reach of the surface (a point beyond it carries a constant cost and no sensitivity) with a
+//! positive weight (a point of weight 0 is not observed). `p` is the number of fitted
+//! coordinates. Standard errors of the reported quantities are `scale_k sqrt(Cov_kk)` with
+//! `scale_k = d quantity_k / d x_k` ([`crate::params::ParamSet::x_scales`]).
+//!
+//! # What the weights mean (and what they cannot mean at the same time)
+//!
+//! * **Scale invariance (exact).** Multiplying every weight by `c > 0` multiplies `H` by `c`
+//!   and `r^T W r` by `c` while `n` stays: `Cov` is unchanged, and so is the estimate (the
+//!   minimiser of `c J` is that of `J`). Only the ratios of the weights matter.
+//! * **A weight of 4 is four observations (of the information; of the degrees of freedom only
+//!   approximately).** Point `i` with weight 4 contributes `4 a_i a_i^T` to `H`, `4 r_i^2` to
+//!   `r^T W r` and `4 rho(r_i)` to the cost: exactly what four rows of weight 1 at the same
+//!   place contribute. So the cost, its gradient, `H`, the estimate and `r^T W r` of a file
+//!   with weight 4 on `k` points are those of the file with these rows written four times.
+//!   The degrees of freedom differ: `n - p` against `n + 3k - p`, so
+//!   `SE_weighted / SE_duplicated = sqrt((n + 3k - p) / (n - p))`, which tends to 1 as the
+//!   share of repeated points falls. Both properties cannot hold exactly: with every weight 4,
+//!   scale invariance says "the same as every weight 1" (`n` points), duplication says `4n`.
+//!   Scale invariance is kept exactly because a weight read from a file is a relative
+//!   precision: a weight-4 point is worth the *mean* of four observations, whose variance is
+//!   `sigma^2 / 4`, and its residual carries one degree of freedom (the scatter of four real
+//!   observations about their mean is not in the file; duplicated identical rows claim it
+//!   without having it, which is why they give the smaller standard error). This is the
+//!   convention of weighted least squares in R's `lm(weights = )` and of SciPy's
+//!   `curve_fit(sigma = , absolute_sigma = False)`.
+//!
+//! `crates/adjoint/tests/statistics.rs` checks both statements (scaling by 100: standard errors
+//! equal to 1e-9; weight 4 against duplicated rows: cost, gradient, `H` and `r^T W r` equal,
+//! standard errors in the ratio above).
+
+use crate::problem::{Evaluation, Problem};
+
+/// Inverts a small symmetric positive definite matrix (`n x n`, row-major) by Gauss-Jordan
+/// elimination with partial pivoting; `None` when it is singular.
+pub fn invert_small(a: &[f64], n: usize) -> Option<Vec<f64>> {
+    let mut m = a.to_vec();
+    let mut inv = vec![0.0; n * n];
+    for i in 0..n {
+        inv[i * n + i] = 1.0;
+    }
+    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    for col in 0..n {
+        let piv = (col..n).max_by(|&x, &y| m[x * n + col].abs().total_cmp(&m[y * n + col].abs()))?;
+        if m[piv * n + col].abs() <= 1e-14 * scale {
+            return None;
+        }
+        for k in 0..n {
+            m.swap(col * n + k, piv * n + k);
+            inv.swap(col * n + k, piv * n + k);
+        }
+        let d = 1.0 / m[col * n + col];
+        for k in 0..n {
+            m[col * n + k] *= d;
+            inv[col * n + k] *= d;
+        }
+        for r in 0..n {
+            if r != col {
+                let f = m[r * n + col];
+                if f != 0.0 {
+                    for k in 0..n {
+                        m[r * n + k] -= f * m[col * n + k];
+                        inv[r * n + k] -= f * inv[col * n + k];
+                    }
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
+/// First-order uncertainty of a fit (module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Uncertainty {
+    /// component labels ([`crate::params::ParamSet::labels`])
+    pub labels: Vec<String>,
+    /// standard errors of the reported quantities, per label
+    pub std_errors: Vec<f64>,
+    /// covariance of `x` (`n x n`, row-major)
+    pub cov_x: Vec<f64>,
+    /// `d quantity / d x_k` ([`crate::params::ParamSet::x_scales`])
+    pub scales: Vec<f64>,
+    /// the residual variance `s^2 = r^T W r / (n - p)`
+    pub residual_variance: f64,
+    /// `n`: the points within reach with a positive weight
+    pub points: usize,
+}
+
+/// First-order standard errors of the fitted quantities at `x` (module docs): the covariance
+/// `s^2 H^{-1}` with the Gauss-Newton matrix `H = A^T W A` of the tangent-linear pass and the
+/// residual variance `s^2 = r^T W r / (n - p)` over the same points and weights as `H`, mapped
+/// to the reported quantities by [`crate::params::ParamSet::x_scales`]. `None` when `H` is
+/// singular (a parameter the data do not determine) or there are no more points than
+/// parameters.
+pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<Option<Uncertainty>, String> {
+    let p = x.len();
+    let n: usize = ev.frames.iter().map(|f| f.informative).sum();
+    if n <= p {
+        return Ok(None);
+    }
+    let rwr: f64 = ev.frames.iter().map(|f| f.weighted_squared).sum();
+    let s2 = rwr / (n - p) as f64;
+    let h = problem.gauss_newton_matrix(x).map_err(|e| e.to_string())?;
+    let Some(inv) = invert_small(&h, p) else {
+        return Ok(None);
+    };
+    let model = problem.model_at(x);
+    let scales = problem.params.x_scales(&model);
+    let cov_x: Vec<f64> = inv.iter().map(|v| v * s2).collect();
+    let std_errors = (0..p)
+        .map(|k| scales[k] * cov_x[k * p + k].max(0.0).sqrt())
+        .collect();
+    Ok(Some(Uncertainty {
+        labels: problem.params.labels(),
+        std_errors,
+        cov_x,
+        scales,
+        residual_variance: s2,
+        points: n,
+    }))
+}
