@@ -54,7 +54,8 @@ max = [-0.2, 2.0, 1.0]
 effects = ["corotation", "wind"]
 "#;
 
-/// A scratch file `name` of this process holding `bytes`.
+/// A scratch file `name` of this process holding `bytes` (each property its own name: the
+/// properties run at once).
 fn scratch(name: &str, bytes: &[u8]) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("adjoint-parsers-fuzz-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -125,15 +126,15 @@ proptest! {
     fn mutated_csv_never_panics(seed in 0..CSV_SEEDS.len(), m in mutations()) {
         let b = apply(CSV_SEEDS[seed], &m);
         check_csv(Observations::parse_csv(&String::from_utf8_lossy(&b), Path::new("fuzz.csv")))?;
-        check_csv(Observations::read_csv(scratch("fuzz.csv", &b)))?;
+        check_csv(Observations::read_csv(scratch("mutated-fuzz.csv", &b)))?;
     }
 
     /// Random bytes as an observation file.
     #[test]
     fn random_csv_bytes_never_panic(b in bytes()) {
-        check_csv(Observations::read_csv(scratch("fuzz.csv", &b)))?;
+        check_csv(Observations::read_csv(scratch("random-fuzz.csv", &b)))?;
         let header = [b"frame,x,y,z\n".as_slice(), &b].concat();
-        check_csv(Observations::read_csv(scratch("fuzz.csv", &header)))?;
+        check_csv(Observations::read_csv(scratch("random-fuzz.csv", &header)))?;
     }
 
     /// Mutated camera files and random bytes as a camera file.
