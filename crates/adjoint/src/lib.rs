@@ -20,7 +20,9 @@
 //! * [`optim`]: Barzilai-Borwein gradient descent, L-BFGS, Levenberg-Marquardt, all
 //!   tolerant of diverging evaluations;
 //! * [`observe`] and [`observations`]: virtual RGB-D cameras and the observation CSV;
-//! * [`fit`]: a scene's reconstruction problem, the optimizer objective, `gradcheck`;
+//! * [`fit`]: a scene's reconstruction problem, the optimizer objective; [`gradcheck`]: the
+//!   adjoint gradient against finite differences over a sweep of steps with the Taylor
+//!   remainder test of [`taylor`];
 //! * [`refine`]: the discretisation share of the error (the same state at `r/2`, `r`, `2r`);
 //! * [`diagnosis`]: the effects as first-class parts of the model; where a fitted model fails
 //!   and which effect is missing (score tests, short refits, BIC).
@@ -30,6 +32,7 @@ pub mod cost;
 pub mod cost_mesh;
 pub mod diagnosis;
 pub mod fit;
+pub mod gradcheck;
 pub mod local;
 pub mod observations;
 pub mod observe;
@@ -38,3 +41,4 @@ pub mod params;
 pub mod problem;
 pub mod refine;
 pub mod tangent;
+pub mod taylor;
