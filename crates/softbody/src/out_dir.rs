@@ -10,7 +10,7 @@
 //! - [`OutFiles`] (single files: `observe`'s CSV, its camera file and preview) writes each as
 //!   `FILE.tmp-<pid>`; [`OutFiles::commit`] renames them all into place, restoring the earlier
 //!   files when one rename fails.
-//! - Both hold an advisory lock (`flock`, `std::fs::File::try_lock`) on a lock file beside the
+//! - Both hold an advisory lock (`flock` through `std::fs::File::try_lock`, std since 1.89) on a lock file beside the
 //!   target (`DIR.lock`, `FILE.lock`) from the start to the end of the run: a second run into
 //!   the same target fails at once with `DIR is in use by process N`. The lock file holds the
 //!   pid and is removed at the end; a lock left by a killed run is not held and is taken over.
@@ -63,6 +63,10 @@ struct Lock {
     file: File,
 }
 
+// `File::try_lock` is std since 1.89: the toolchain is 1.95 and the dependencies already need
+// 1.85 (clap 4.6, indicatif 0.18); the workspace's declared rust-version (1.80) is not raised
+// here because that turns on MSRV-gated lints in every crate
+#[allow(clippy::incompatible_msrv)]
 impl Lock {
     /// Takes the lock of `target` or fails at once naming the holder.
     fn take(target: &Path) -> Result<Lock, String> {
@@ -125,6 +129,7 @@ fn same_file(_: &File, path: &Path) -> bool {
     path.exists()
 }
 
+#[allow(clippy::incompatible_msrv)] // File::unlock (see `impl Lock`)
 impl Drop for Lock {
     fn drop(&mut self) {
         // removed while held: a run waiting on this inode sees it gone and takes a fresh one
@@ -305,7 +310,7 @@ fn stale_dirs(target: &Path) -> Vec<PathBuf> {
             (t, beside(target, &e.file_name().to_string_lossy()[name.len()..]))
         })
         .collect();
-    found.sort_by(|a, b| b.0.cmp(&a.0));
+    found.sort_by_key(|f| std::cmp::Reverse(f.0));
     found.into_iter().map(|(_, p)| p).collect()
 }
 
@@ -431,7 +436,7 @@ mod tests {
         let (a, b) = (d.join("a.csv"), d.join("a.cameras.json"));
         std::fs::write(&a, "old a").unwrap();
         let files = OutFiles::begin(&[a.clone(), b.clone()]).unwrap();
-        assert!(OutFiles::begin(&[a.clone()])
+        assert!(OutFiles::begin(std::slice::from_ref(&a))
             .unwrap_err()
             .contains("is in use by process"));
         std::fs::write(files.path(&a), "new a").unwrap();

@@ -176,6 +176,7 @@ fn a_folder_of_other_files_is_not_replaced() {
 }
 
 #[test]
+#[allow(clippy::incompatible_msrv)] // File::try_lock: std since 1.89 (softbody::out_dir)
 fn a_second_run_into_a_locked_out_dir_fails_at_once() {
     let dir = tmp("outputs", "lock");
     let s = write(&dir, "s.toml", &scene(2, ""));
