@@ -2,6 +2,8 @@
 //! objective around [`Problem`], and the physical-space finite differences of `gradcheck`.
 
 use crate::cost::{ObservedPoint, PointCloudCost, Robust};
+pub use crate::gradcheck::{gradcheck, GradCheck};
+pub use crate::statistics::{invert_small, uncertainty, Uncertainty};
 use crate::observations::Observations;
 use crate::optim::{EvalError, GaussNewtonObjective, GnEval, Objective};
 use crate::params::ParamSet;
@@ -387,79 +389,3 @@ pub fn set_physical(model: &mut Model, label: &str, value: f64) -> bool {
     true
 }
 
-/// One line of a gradient check.
-#[derive(Clone, Debug, PartialEq)]
-pub struct GradCheck {
-    /// the physical component
-    pub name: String,
-    /// the adjoint derivative
-    pub adjoint: f64,
-    /// the central difference
-    pub finite_difference: f64,
-    /// the step used
-    pub step: f64,
-    /// `|adjoint - fd| / max(|adjoint|, |fd|)` (0 when both vanish)
-    pub rel_error: f64,
-}
-
-impl GradCheck {
-    fn new(name: String, adjoint: f64, finite_difference: f64, step: f64) -> Self {
-        let den = adjoint.abs().max(finite_difference.abs());
-        GradCheck {
-            name,
-            adjoint,
-            finite_difference,
-            step,
-            rel_error: if den == 0.0 {
-                0.0
-            } else {
-                (adjoint - finite_difference).abs() / den
-            },
-        }
-    }
-}
-
-/// Compares the adjoint gradient in physical units with central differences of the whole
-/// simulation, one component at a time, with step `rel_step * max(|value|, scale)` where `scale`
-/// is 1 for vectors and heights.
-pub fn gradcheck(problem: &mut Problem, rel_step: f64) -> Result<Vec<GradCheck>, String> {
-    let x0 = problem.x0();
-    let model0 = problem.model_at(&x0);
-    let (_, _, pg) = problem.gradient(&x0).map_err(|e| e.to_string())?;
-    let adjoint = problem.params.physical(&model0, &pg);
-    let mut out = Vec::new();
-    let labels = problem.params.labels();
-    for (name, an) in adjoint {
-        if name.starts_with("stiffness_field[") {
-            // a coefficient (log factor): differences in the coordinate itself
-            let k = labels.iter().position(|l| *l == name).ok_or("field label")?;
-            let step = rel_step.max(1e-6);
-            let mut at = |d: f64| -> Result<f64, String> {
-                let mut x = x0.clone();
-                x[k] += d;
-                problem.evaluate(&x).map(|e| e.cost).map_err(|e| e.to_string())
-            };
-            let fd = (at(step)? - at(-step)?) / (2.0 * step);
-            out.push(GradCheck::new(name, an, fd, step));
-            continue;
-        }
-        let v = get_physical(&model0, &name).ok_or_else(|| format!("unknown component {name}"))?;
-        let mut step = rel_step * v.abs().max(if v.abs() > 0.0 { 0.0 } else { 1.0 });
-        if name == "poisson" {
-            step = step.min(0.5 * (0.5 - v)).min(0.5 * v);
-        }
-        let mut cost_at = |val: f64| -> Result<f64, String> {
-            let mut m = model0.clone();
-            set_physical(&mut m, &name, val);
-            problem
-                .evaluate_model(m)
-                .map(|e| e.cost)
-                .map_err(|e| e.to_string())
-        };
-        let fd = (cost_at(v + step)? - cost_at(v - step)?) / (2.0 * step);
-        out.push(GradCheck::new(name, an, fd, step));
-    }
-    Ok(out)
-}
-
-pub use crate::statistics::{invert_small, uncertainty, Uncertainty};

@@ -21,7 +21,9 @@
 //!   tolerant of diverging evaluations;
 //! * [`observe`] and [`observations`]: virtual RGB-D cameras and the observation CSV;
 //!   [`camera_file`]: the camera file beside a CSV, checked against it;
-//! * [`fit`]: a scene's reconstruction problem, the optimizer objective, `gradcheck`;
+//! * [`fit`]: a scene's reconstruction problem, the optimizer objective; [`gradcheck`]: the
+//!   adjoint gradient against finite differences over a sweep of steps with the Taylor
+//!   remainder test of [`taylor`];
 //! * [`statistics`]: standard errors of a fit, weighted consistently;
 //! * [`refine`]: the discretisation share of the error (the same state at `r/2`, `r`, `2r`);
 //! * [`diagnosis`]: the effects as first-class parts of the model; where a fitted model fails
@@ -33,6 +35,7 @@ pub mod cost;
 pub mod cost_mesh;
 pub mod diagnosis;
 pub mod fit;
+pub mod gradcheck;
 pub mod local;
 pub mod observations;
 pub mod observe;
@@ -42,3 +45,4 @@ pub mod problem;
 pub mod refine;
 pub mod statistics;
 pub mod tangent;
+pub mod taylor;

@@ -74,8 +74,9 @@ fn effects_line(effects: &[&str]) -> String {
 /// Runs the demo.
 pub fn run(a: Args) -> Result<(), String> {
     let t0 = Instant::now();
-    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join("demo"));
-    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let target = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join("demo"));
+    let dir = crate::out_dir::OutDir::begin(&target)?;
+    let out = dir.path().to_path_buf();
     let say = |s: String| {
         if !a.json {
             crate::note!("{s}");
@@ -134,7 +135,7 @@ pub fn run(a: Args) -> Result<(), String> {
         cameras: &cameras,
         params: params.clone(),
         settings: DiagnoseParams::default(),
-        out: &out,
+        out: &dir,
         quiet: a.json,
         command: "demo: diagnose",
         refine_check: false,
@@ -213,7 +214,7 @@ pub fn run(a: Args) -> Result<(), String> {
         ),
     ];
     let fall = d.rms / ev.rms().max(f64::MIN_POSITIVE);
-    let summary = json!({
+    let mut summary = json!({
         "before": {"rms": d.rms, "effects": d.effects, "parameters": crate::fit::values_json(&d.fitted)},
         "missing_effect": missing,
         "after": {"rms": ev.rms(), "parameters": crate::fit::values_json(&after_values)},
@@ -224,9 +225,11 @@ pub fn run(a: Args) -> Result<(), String> {
         "out": out,
         "seconds": t0.elapsed().as_secs_f64(),
     });
+    dir.publish(&mut summary);
     let path = out.join("demo.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
         .map_err(|e| format!("{}: {e}", path.display()))?;
+    dir.commit()?;
     if a.json {
         crate::output::print_json(&summary)?;
     } else {
@@ -237,7 +240,7 @@ pub fn run(a: Args) -> Result<(), String> {
         }
         crate::note!(
             "the error fell {fall:.1}x by adding `{missing}`; report, pictures and scene files in {} ({:.0} s)",
-            out.display(),
+            target.display(),
             t0.elapsed().as_secs_f64()
         );
     }

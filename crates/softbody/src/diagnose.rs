@@ -59,8 +59,8 @@ pub struct Job<'a> {
     pub params: ParamSet,
     /// settings
     pub settings: DiagnoseParams,
-    /// report folder
-    pub out: &'a Path,
+    /// report folder (transactional: written into its temporary folder)
+    pub out: &'a crate::out_dir::OutDir,
     /// no progress bar
     pub quiet: bool,
     /// history entry's command
@@ -72,7 +72,7 @@ pub struct Job<'a> {
 /// Runs a diagnosis, writes its report and history entry; returns it and its JSON.
 pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     let t0 = Instant::now();
-    std::fs::create_dir_all(job.out).map_err(|e| format!("{}: {e}", job.out.display()))?;
+    let out = job.out.path();
     let setup = Setup {
         observations: job.observations,
         eyes: job.eyes,
@@ -117,7 +117,7 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
         gravity,
         history: &entries,
     };
-    let pictures = crate::diagnose_report::write_pictures(job.out, &d, &inputs)?;
+    let pictures = crate::diagnose_report::write_pictures(out, &d, &inputs)?;
     let discretisation = if job.refine_check {
         let params = adjoint::refine::RefineParams {
             frames: Some(job.observations.frame_numbers()),
@@ -138,7 +138,8 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     if let Some(v) = discretisation {
         summary["discretisation"] = v;
     }
-    let path = job.out.join("diagnosis.json");
+    job.out.publish(&mut summary);
+    let path = out.join("diagnosis.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
         .map_err(|e| format!("{}: {e}", path.display()))?;
     Ok((d, summary))
@@ -216,10 +217,11 @@ pub fn run(args: Args) -> Result<(), String> {
         Some(f) => f.cameras()?,
         None => Vec::new(),
     };
-    let out = args
+    let target = args
         .out
         .clone()
         .unwrap_or_else(|| crate::simulate::default_out(&args.problem.scene, "diagnose"));
+    let out = crate::out_dir::OutDir::begin(&target)?;
     let settings = DiagnoseParams {
         fit_iterations: args.iterations,
         refits: args.refits,
@@ -238,11 +240,12 @@ pub fn run(args: Args) -> Result<(), String> {
         command: "diagnose",
         refine_check: !args.no_refine_check,
     })?;
+    out.commit()?;
     if args.json {
         crate::output::print_json(&summary)?;
     } else {
         print_text(&d);
-        crate::note!("report: {}", out.display());
+        crate::note!("report: {}", target.display());
     }
     Ok(())
 }

@@ -1,9 +1,10 @@
 //! `softbody fit SCENE --observations OBS.csv [--params a,b] [--optimizer X] [--iterations N]
 //! [--out DIR] [--resume] [--json]`: parameter reconstruction with adjoint gradients.
 //!
-//! Every iteration is appended to `DIR/fit.log` (one JSON object per line) as soon as it
+//! Every iteration is appended to `fit.log` (one JSON object per line) as soon as it
 //! completes, so an interrupted fit loses nothing; `--resume` continues from the log's last
-//! iteration. The report folder gets `fit.json` and PNG plots of the cost and the parameters per
+//! iteration. The report is written transactionally (`crate::out_dir`): while the fit runs the
+//! log is in `DIR.tmp-<pid>`, which `--resume` reads when the run was killed. The report folder gets `fit.json` and PNG plots of the cost and the parameters per
 //! iteration and of the rms per frame before and after. Every run is appended to the scene's
 //! history file (`SCENE.history.jsonl`, `adjoint::diagnosis::history`).
 
@@ -166,11 +167,12 @@ pub fn run(args: Args) -> Result<(), String> {
             args.problem.observations.display()
         ));
     }
-    let out = args
+    let target = args
         .out
         .clone()
         .unwrap_or_else(|| crate::simulate::default_out(&args.problem.scene, "fit"));
-    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let dir = crate::out_dir::OutDir::begin(&target)?;
+    let out = dir.path().to_path_buf();
     let log_path = out.join("fit.log");
 
     let mut problem = scene_problem(
@@ -192,8 +194,10 @@ pub fn run(args: Args) -> Result<(), String> {
     let mut history: Vec<Value> = Vec::new();
     let mut x0 = x_start.clone();
     if args.resume {
-        if log_path.exists() {
-            history = read_log(&log_path)?;
+        // the earlier run's log (of a killed run, else of the report), copied into the new one
+        if let Some(earlier) = dir.resume_file("fit.log") {
+            history = read_log(&earlier)?;
+            std::fs::copy(&earlier, &log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
         }
         if let Some(last) = history.last() {
             let xs: Option<Vec<f64>> = last["x"]
@@ -210,8 +214,6 @@ pub fn run(args: Args) -> Result<(), String> {
                 }
             }
         }
-    } else if log_path.exists() {
-        std::fs::remove_file(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
     }
     // iteration numbers continue the log; a resumed run's iteration 0 repeats its last entry
     let resumed = !history.is_empty();
@@ -341,9 +343,11 @@ pub fn run(args: Args) -> Result<(), String> {
     )?;
     let mut summary = summary;
     summary["history_file"] = json!(hist);
+    dir.publish(&mut summary);
     let path = out.join("fit.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
         .map_err(|e| format!("{}: {e}", path.display()))?;
+    dir.commit()?;
     if args.json {
         crate::output::print_json(&summary)?;
     } else {
@@ -359,7 +363,7 @@ pub fn run(args: Args) -> Result<(), String> {
             ev_initial.rms(),
             ev_final.rms()
         );
-        crate::note!("report: {}", out.display());
+        crate::note!("report: {}", target.display());
     }
     Ok(())
 }

@@ -10,6 +10,7 @@ mod fit;
 mod fit_report;
 mod gradcheck;
 mod observe;
+mod out_dir;
 mod output;
 #[allow(dead_code)]
 mod plot;
@@ -73,7 +74,7 @@ fn main() -> ExitCode {
         Err(e) if e == output::STDOUT_CLOSED => ExitCode::from(output::EXIT_STDOUT_CLOSED),
         Err(e) => {
             // one line, each prefix once, a quoted bad value repeated up to 100 characters
-            let line = e.replace(['\n', '\r'], " ");
+            let line = out_dir::public_message(&e).replace(['\n', '\r'], " ");
             let line = cutfem::scene::shorten_quotes(&cutfem::scene::dedupe_prefixes(&line));
             crate::note!("error: {line}");
             ExitCode::FAILURE

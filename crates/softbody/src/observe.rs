@@ -137,19 +137,6 @@ fn preview(mesh: &TriMesh, cameras: &[Camera], frame: usize) -> Image {
     Image::tile(&tiles, tiles.len().min(4))
 }
 
-/// A file this run created, removed unless the run completes (`path` is taken then).
-struct Created {
-    path: Option<PathBuf>,
-}
-
-impl Drop for Created {
-    fn drop(&mut self) {
-        if let Some(p) = &self.path {
-            let _ = std::fs::remove_file(p);
-        }
-    }
-}
-
 /// Runs the command.
 pub fn run(a: Args) -> Result<(), String> {
     let t_total = Instant::now();
@@ -204,20 +191,12 @@ pub fn run(a: Args) -> Result<(), String> {
         .out
         .clone()
         .unwrap_or_else(|| default_out(&a.scene, "observe").join("observations.csv"));
-    // fail on an unwritable output before simulating
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    }
-    // without truncating an earlier file: a failing run leaves it as it was, and removes the
-    // file it created
-    let mut created = Created {
-        path: (!out.exists()).then(|| out.clone()),
-    };
-    std::fs::OpenOptions::new()
-        .append(true)
-        .create(true)
-        .open(&out)
-        .map_err(|e| format!("{}: {e}", out.display()))?;
+    // the CSV, its camera file and the preview appear together at the end, or not at all
+    // (`crate::out_dir`); an unwritable output fails here, before simulating
+    let cams_path = adjoint::fit::cameras_path(&out);
+    let mut targets = vec![out.clone(), cams_path.clone()];
+    targets.extend(a.preview.clone());
+    let files = crate::out_dir::OutFiles::begin(&targets)?;
 
     let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
     let grid = Grid::new(sdf).map_err(|e| format!("{}: {e}", a.scene.display()))?;
@@ -279,10 +258,8 @@ pub fn run(a: Args) -> Result<(), String> {
             a.pixels
         ));
     }
-    obs.write_csv(&out).map_err(|e| e.to_string())?;
-    created.path = None;
+    obs.write_csv(files.path(&out)).map_err(|e| e.to_string())?;
     // the cameras beside the CSV: `fit` measures residuals along their viewing rays
-    let cams_path = adjoint::fit::cameras_path(&out);
     let cams_json = json!({
         "cameras": cameras.iter().enumerate().map(|(i, c)| json!({
             "id": i, "eye": c.eye, "target": c.target, "up": c.up, "fov_y": c.fov_y,
@@ -292,7 +269,7 @@ pub fn run(a: Args) -> Result<(), String> {
         "seed": a.seed,
     });
     std::fs::write(
-        &cams_path,
+        files.path(&cams_path),
         serde_json::to_string_pretty(&cams_json).expect("json"),
     )
     .map_err(|e| format!("{}: {e}", cams_path.display()))?;
@@ -300,7 +277,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let preview_path = match (&a.preview, &last_mesh) {
         (Some(p), Some(mesh)) => {
             preview(mesh, &cameras, last)
-                .save_png(p)
+                .save_png(&files.path(p))
                 .map_err(|e| e.to_string())?;
             Some(p.display().to_string())
         }
@@ -343,6 +320,7 @@ pub fn run(a: Args) -> Result<(), String> {
         "camera_file": cams_path.display().to_string(),
         "seconds": {"simulation": t_sim, "observation": t_obs, "total": t_total.elapsed().as_secs_f64()},
     });
+    files.commit()?;
     if a.json {
         crate::output::print_json(&summary)?;
     } else {

@@ -102,7 +102,9 @@ pub fn run(a: Args) -> Result<(), String> {
             a.picture_frames
         ));
     }
-    let out = a.out.clone().unwrap_or_else(|| default_out(&a.scene, "simulate"));
+    let target = a.out.clone().unwrap_or_else(|| default_out(&a.scene, "simulate"));
+    let dir = crate::out_dir::OutDir::begin(&target)?;
+    let out = dir.path().to_path_buf();
     let frames_dir = out.join("frames");
     std::fs::create_dir_all(&frames_dir).map_err(|e| format!("{}: {e}", frames_dir.display()))?;
 
@@ -239,11 +241,13 @@ pub fn run(a: Args) -> Result<(), String> {
     if let Some(r) = refine {
         summary["refine_check"] = r;
     }
+    dir.publish(&mut summary);
     std::fs::write(
         out.join("summary.json"),
         serde_json::to_string_pretty(&summary).expect("json"),
     )
-    .map_err(|e| format!("{}: {e}", out.display()))?;
+    .map_err(|e| format!("{}: {e}", target.join("summary.json").display()))?;
+    dir.commit()?;
     if a.json {
         crate::output::print_json(&summary)?;
     } else {
@@ -257,8 +261,8 @@ pub fn run(a: Args) -> Result<(), String> {
             sim.max_displacement(),
             iterations.iter().min().unwrap_or(&0),
             iterations.iter().max().unwrap_or(&0),
-            frames_dir.display(),
-            pic_path.display()
+            target.join("frames").display(),
+            target.join("picture.png").display()
         );
     }
     Ok(())

@@ -145,7 +145,21 @@ fn gradcheck_agrees_and_bad_input_is_one_line() {
         let rel = r["rel_error"].as_f64().unwrap();
         assert!(rel < 1e-4, "{name}: {r}");
         assert!(r["adjoint"].as_f64().unwrap() != 0.0);
+        // the sweep: the adjoint-corrected Taylor remainder falls at second order
+        assert_eq!(r["smoothness"], "smooth", "{name}: {}", r["verdict"]);
+        assert_eq!(r["verified"], true);
+        let p = r["corrected_order"].as_f64().unwrap();
+        assert!((1.8..=2.2).contains(&p), "{name}: corrected order {p}");
+        let p = r["order"].as_f64().unwrap();
+        assert!((0.8..=1.2).contains(&p), "{name}: first order {p}");
+        assert!(r["sweep"].as_array().unwrap().len() >= 4, "{name}: {r}");
     }
+    assert_eq!(j["steps"].as_array().unwrap().len(), 8);
+    assert!(
+        j["non_smooth"].as_array().unwrap().is_empty(),
+        "{}",
+        j["non_smooth"]
+    );
 
     // unknown parameter
     one_line_error(

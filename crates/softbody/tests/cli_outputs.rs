@@ -1,0 +1,345 @@
+//! Issue 13, "Output that lies": every command's output is transactional (written beside the
+//! target and renamed into place on success) and locked (a second run into the same target
+//! fails at once naming the process that holds it). A failing rerun leaves the earlier output
+//! byte for byte; a rerun with another scene leaves nothing of the first; `observe` that fails
+//! at its camera file leaves no CSV; `fit --resume` continues the log of a killed run.
+
+use std::collections::BTreeMap;
+use std::fs::OpenOptions;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+mod common;
+use common::*;
+
+/// A tiny cantilever with `steps` steps; `extra` is appended.
+fn scene(steps: usize, extra: &str) -> String {
+    format!(
+        r#"
+[body]
+shape = {{ kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }}
+resolution = 10
+[material]
+young = 2000.0
+poisson = 0.3
+[gravity]
+acceleration = [0.0, -10.0, 0.0]
+[[dirichlet]]
+min = [-1.0, 0.0, -1.0]
+max = [-0.2, 2.0, 1.0]
+[time]
+dt = 0.01
+steps = {steps}
+{extra}
+"#
+    )
+}
+
+/// Every file under `dir` (relative path -> bytes).
+fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    fn walk(root: &Path, d: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
+        for e in std::fs::read_dir(d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(root, &p, out);
+            } else {
+                out.insert(
+                    p.strip_prefix(root).unwrap().to_path_buf(),
+                    std::fs::read(&p).unwrap(),
+                );
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+/// Names in `dir` other than `keep` (temporary folders, lock files left behind).
+fn leftovers(dir: &Path, keep: &[&str]) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !keep.contains(&n.as_str()))
+        .collect()
+}
+
+fn simulate(scene: &Path, out: &Path) -> std::process::Output {
+    run(&[
+        "simulate",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ])
+}
+
+#[test]
+fn a_failing_rerun_leaves_the_earlier_output_byte_identical() {
+    let dir = tmp("outputs", "rerun");
+    let good = write(&dir, "good.toml", &scene(3, ""));
+    let out = dir.join("out");
+    let j = json(&simulate(&good, &out));
+    // the JSON names the final folder, not the temporary one
+    assert_eq!(j["out"], out.to_str().unwrap());
+    assert_eq!(j["files"]["picture"], out.join("picture.png").to_str().unwrap());
+    let before = snapshot(&out);
+    assert!(before.contains_key(Path::new("summary.json")) && before.len() > 4);
+    // a rerun that fails after its output was begun (the body's file is missing)
+    let bad = write(
+        &dir,
+        "bad.toml",
+        &scene(3, "").replace(
+            "shape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }",
+            "sdf = \"missing.sdf\"",
+        ),
+    );
+    let o = simulate(&bad, &out);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(!err.contains(".tmp-"), "the message names the target: {err}");
+    assert_eq!(snapshot(&out), before, "the earlier output is untouched");
+    assert!(
+        leftovers(&dir, &["good.toml", "bad.toml", "out"]).is_empty(),
+        "{:?}",
+        leftovers(&dir, &["good.toml", "bad.toml", "out"])
+    );
+
+    // fit: a rerun whose observations are out of reach fails; fit.json, fit.log and plots stay
+    let obs = dir.join("obs.csv");
+    json(&run(&[
+        "observe",
+        good.to_str().unwrap(),
+        "--out",
+        obs.to_str().unwrap(),
+        "--radius",
+        "2",
+        "--json",
+    ]));
+    let report = dir.join("report");
+    let fit = |obs: &Path| {
+        run(&[
+            "fit",
+            good.to_str().unwrap(),
+            "--observations",
+            obs.to_str().unwrap(),
+            "--out",
+            report.to_str().unwrap(),
+            "--params",
+            "young",
+            "--iterations",
+            "1",
+            "--no-refine-check",
+            "--json",
+        ])
+    };
+    json(&fit(&obs));
+    let before = snapshot(&report);
+    for f in ["fit.json", "fit.log", "cost.png"] {
+        assert!(before.contains_key(Path::new(f)), "{f}");
+    }
+    let far = write(&dir, "far.csv", "frame,x,y,z\n1,50,50,50\n2,51,50,50\n");
+    one_line_error(&fit(&far), "within reach");
+    assert_eq!(snapshot(&report), before, "the earlier report is untouched");
+}
+
+#[test]
+fn a_simulate_rerun_with_another_scene_leaves_no_frame_of_the_first() {
+    let dir = tmp("outputs", "frames");
+    let out = dir.join("out");
+    let long = write(&dir, "long.toml", &scene(6, ""));
+    json(&simulate(&long, &out));
+    assert!(out.join("frames/0006.ply").exists());
+    let short = write(
+        &dir,
+        "short.toml",
+        &scene(2, "").replace("young = 2000.0", "young = 5000.0"),
+    );
+    let j = json(&simulate(&short, &out));
+    assert_eq!(j["steps"], 2);
+    let frames: Vec<String> = leftovers(&out.join("frames"), &[]);
+    let mut frames = frames;
+    frames.sort();
+    assert_eq!(frames, ["0000.ply", "0001.ply", "0002.ply"]);
+    assert!(leftovers(&dir, &["long.toml", "short.toml", "out"]).is_empty());
+}
+
+#[test]
+fn a_folder_of_other_files_is_not_replaced() {
+    let dir = tmp("outputs", "foreign");
+    let s = write(&dir, "s.toml", &scene(2, ""));
+    // the folder of the scene itself: refused, nothing deleted
+    one_line_error(&simulate(&s, &dir), "holds files that softbody did not write");
+    assert!(s.exists());
+    let file = write(&dir, "file", "x");
+    one_line_error(&simulate(&s, &file), "is not a folder");
+}
+
+#[test]
+#[allow(clippy::incompatible_msrv)] // File::try_lock: std since 1.89 (softbody::out_dir)
+fn a_second_run_into_a_locked_out_dir_fails_at_once() {
+    let dir = tmp("outputs", "lock");
+    let s = write(&dir, "s.toml", &scene(2, ""));
+    let out = dir.join("out");
+    json(&simulate(&s, &out));
+    let before = snapshot(&out);
+
+    // the lock held as a run holds it: `flock` on OUT.lock holding the pid
+    let lock_path = dir.join("out.lock");
+    let mut lock = OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(&lock_path)
+        .unwrap();
+    lock.try_lock().unwrap();
+    write!(lock, "{}", std::process::id()).unwrap();
+    let t = Instant::now();
+    one_line_error(
+        &simulate(&s, &out),
+        &format!("is in use by process {}", std::process::id()),
+    );
+    assert!(t.elapsed() < Duration::from_secs(5), "fails at once");
+    assert_eq!(snapshot(&out), before);
+    drop(lock);
+
+    // a real run holding it: a long simulation into the same folder
+    let long = write(&dir, "long.toml", &scene(100_000, ""));
+    let mut child = softbody()
+        .args([
+            "simulate",
+            long.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--json",
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let pid = child.id().to_string();
+    let t = Instant::now();
+    while std::fs::read_to_string(&lock_path).unwrap_or_default() != pid {
+        assert!(
+            t.elapsed() < Duration::from_secs(60),
+            "the long run never took the lock"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let o = simulate(&s, &out);
+    child.kill().unwrap();
+    child.wait().unwrap();
+    one_line_error(&o, &format!("is in use by process {pid}"));
+    assert_eq!(snapshot(&out), before, "neither run touched the output");
+    // the killed run left its temporary folder; the next successful run removes it
+    assert!(dir.join(format!("out.tmp-{pid}")).exists());
+    json(&simulate(&s, &out));
+    assert!(
+        leftovers(&dir, &["s.toml", "long.toml", "out"]).is_empty(),
+        "{:?}",
+        leftovers(&dir, &["s.toml", "long.toml", "out"])
+    );
+}
+
+#[test]
+fn observe_failing_at_the_camera_file_leaves_no_csv() {
+    let dir = tmp("outputs", "observe");
+    let s = write(&dir, "s.toml", &scene(2, ""));
+    let obs = dir.join("obs.csv");
+    // a folder where the camera file goes
+    std::fs::create_dir(dir.join("obs.cameras.json")).unwrap();
+    let o = run(&[
+        "observe",
+        s.to_str().unwrap(),
+        "--out",
+        obs.to_str().unwrap(),
+        "--radius",
+        "2",
+    ]);
+    one_line_error(&o, "obs.cameras.json");
+    assert!(!obs.exists(), "no CSV without its camera file");
+    // an earlier CSV stays as it was
+    std::fs::write(&obs, "frame,x,y,z\n1,0,1,0\n").unwrap();
+    let o = run(&[
+        "observe",
+        s.to_str().unwrap(),
+        "--out",
+        obs.to_str().unwrap(),
+        "--radius",
+        "2",
+    ]);
+    one_line_error(&o, "obs.cameras.json");
+    assert_eq!(std::fs::read_to_string(&obs).unwrap(), "frame,x,y,z\n1,0,1,0\n");
+    assert!(leftovers(&dir, &["s.toml", "obs.csv", "obs.cameras.json"]).is_empty());
+    // without the obstacle both files appear
+    std::fs::remove_dir(dir.join("obs.cameras.json")).unwrap();
+    let j = json(&run(&[
+        "observe",
+        s.to_str().unwrap(),
+        "--out",
+        obs.to_str().unwrap(),
+        "--radius",
+        "2",
+        "--json",
+    ]));
+    assert!(j["points"].as_u64().unwrap() > 0);
+    assert!(dir.join("obs.cameras.json").is_file());
+    assert!(leftovers(&dir, &["s.toml", "obs.csv", "obs.cameras.json"]).is_empty());
+}
+
+#[test]
+fn fit_resume_continues_the_log_of_a_killed_run() {
+    let dir = tmp("outputs", "resume");
+    let truth = write(&dir, "truth.toml", &scene(4, ""));
+    let obs = dir.join("obs.csv");
+    json(&run(&[
+        "observe",
+        truth.to_str().unwrap(),
+        "--out",
+        obs.to_str().unwrap(),
+        "--radius",
+        "2",
+        "--json",
+    ]));
+    let start = write(
+        &dir,
+        "start.toml",
+        &scene(4, "").replace("young = 2000.0", "young = 2600.0"),
+    );
+    let report = dir.join("report");
+    let fit = |extra: &[&str]| {
+        let mut a = vec![
+            "fit",
+            start.to_str().unwrap(),
+            "--observations",
+            obs.to_str().unwrap(),
+            "--out",
+            report.to_str().unwrap(),
+            "--params",
+            "young",
+            "--no-refine-check",
+            "--json",
+        ];
+        a.extend_from_slice(extra);
+        run(&a)
+    };
+    let j = json(&fit(&["--iterations", "3"]));
+    let log = std::fs::read_to_string(report.join("fit.log")).unwrap();
+    assert_eq!(log.lines().count(), j["history"].as_array().unwrap().len());
+    // a run killed after two iterations: its log is in its temporary folder
+    let killed = dir.join("report.tmp-4000000");
+    std::fs::create_dir(&killed).unwrap();
+    let kept: Vec<&str> = log.lines().take(2).collect();
+    std::fs::write(killed.join("fit.log"), kept.join("\n") + "\n").unwrap();
+    let j = json(&fit(&["--resume", "--iterations", "2"]));
+    let h = j["history"].as_array().unwrap();
+    assert_eq!(h[1]["iteration"], 1);
+    assert_eq!(h[2]["iteration"], 2, "resumed from the killed run's log");
+    assert!(
+        !killed.exists(),
+        "the killed run's folder is removed by the success"
+    );
+    let log = std::fs::read_to_string(report.join("fit.log")).unwrap();
+    assert_eq!(log.lines().count(), h.len());
+}
