@@ -135,18 +135,6 @@ fn best_near_face(
 /// Rays meeting a triangle at `|n . d|` below this use the closest-point residual instead.
 pub const GRAZING: f64 = 0.1;
 
-/// A point's ray residual is used only while it is within one cell (`h`) or at most this many
-/// times its distance to the closest surface point (an incidence up to 60 degrees on a flat
-/// patch); otherwise the closest-point residual is. Near a silhouette a ray that slips past the
-/// rim hits the far side of the body: its residual jumps by the body's thickness between two
-/// nearby models (measured: one such point of the torus drop, 0.685 on a ray, made the cost
-/// jump 0.24 where the optimum's was 1e-4, and stopped the fit). With the gate a residual can
-/// only switch between two values within a cell or a factor 2 of each other. Within a cell the
-/// ray residual is always kept: depth noise lies along the ray, and the noise floor assumes so
-/// (a gate without the cell made the residuals of grazing points smaller than the depth noise,
-/// and the noisy torus' rms at the fit fell to 0.89x its floor).
-pub const RAY_CONSISTENCY: f64 = 2.0;
-
 /// The intersection of the ray `o + t d` with triangle `(a, b, c)` (Moller-Trumbore): `(t,
 /// barycentric)` with `t > 0`, or `None`.
 pub fn ray_triangle(
@@ -272,6 +260,12 @@ impl SurfaceCost {
             .map(|pt| {
                 let p = pt.position;
                 let c = bin(p);
+                // along the viewing ray: the first hit among the triangles near the point
+                if let Some(eye) = pt.eye {
+                    if let Some(hit) = self.ray_hit(&hash, c, x, eye, p) {
+                        return Some(hit);
+                    }
+                }
                 let best = best_near_face(&hash, c, |fi| {
                     let [a, b, cc] = faces[fi as usize].map(|v| x[v as usize]);
                     let bary = closest_on_triangle(p, a, b, cc);
@@ -279,15 +273,6 @@ impl SurfaceCost {
                     Some(((p - q).dot(p - q), bary))
                 });
                 let (d2, face, bary) = best?;
-                // along the viewing ray: the first hit among the triangles near the point, if
-                // it agrees with the closest surface (RAY_CONSISTENCY)
-                if let Some(eye) = pt.eye {
-                    if let Some(hit) = self.ray_hit(&hash, c, x, eye, p) {
-                        if hit.residual.abs() <= (RAY_CONSISTENCY * d2.sqrt()).max(self.h) {
-                            return Some(hit);
-                        }
-                    }
-                }
                 if d2.sqrt() > reach {
                     return None;
                 }

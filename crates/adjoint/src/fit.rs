@@ -3,11 +3,11 @@
 
 use crate::cost::{ObservedPoint, PointCloudCost, Robust};
 pub use crate::gradcheck::{gradcheck, GradCheck};
-pub use crate::statistics::{invert_small, uncertainty, Uncertainty};
 use crate::observations::Observations;
 use crate::optim::{EvalError, GaussNewtonObjective, GnEval, Objective};
 use crate::params::ParamSet;
 use crate::problem::{Evaluation, Problem};
+pub use crate::statistics::{invert_small, uncertainty, Uncertainty};
 use cutfem::fem::advect::Diffusion;
 use cutfem::fem::{Grid, Model, Simulation};
 use cutfem::scene::Scene;
@@ -388,4 +388,3 @@ pub fn set_physical(model: &mut Model, label: &str, value: f64) -> bool {
     }
     true
 }
-

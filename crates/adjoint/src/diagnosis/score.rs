@@ -330,15 +330,13 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
 /// shift of the factors is such a direction; so are coarse cells the body barely fills).
 ///
 /// L-BFGS replaces Levenberg-Marquardt above [`MAX_GAUSS_NEWTON`] coordinates. The model is
-/// only ever evaluated inside [`ParamSet::bounds`]: Levenberg-Marquardt projects its iterates
-/// onto the box (`Objective::bounds`) and holds a coordinate on a bound while its gradient
-/// points out of the box, the others moving. A parameter the data hardly determine (the Poisson
-/// ratio of a body in free flight under a wrong model) cannot leave its plausible range, and
-/// one that a long early step carried to a bound comes back as soon as the data pull it
-/// inwards (before the projection such a coordinate stayed far beyond the bound with a zero
-/// gradient for good: the first step of the torus drop's refit threw its Poisson coordinate to
-/// -35, bound -3.9). L-BFGS, which does not project, minimizes `C(P(x))` with `P` the
-/// projection (a coordinate beyond its bound has no effect); the result is `P(x)`.
+/// only ever evaluated inside [`ParamSet::bounds`]: the optimizer minimizes `C(P(x))` with `P`
+/// the projection onto the box (a coordinate beyond its bound has no effect, and its gradient
+/// and Gauss-Newton rows are zero), and the result is `P(x)`. A parameter the data hardly
+/// determine (the Poisson ratio of a body in free flight under a wrong model) cannot leave its
+/// plausible range, and a fit whose start lies on a bound (the Poisson ratio a wrong model
+/// pushed to 0.01) still moves the other coordinates (a step that only crossed the bound would
+/// otherwise count as a failed evaluation, however good it is for the rest).
 pub fn fit_problem(
     problem: &mut Problem,
     x0: &[f64],
@@ -431,8 +429,7 @@ impl Bounded<'_> {
             .map(|(&v, &(lo, hi))| v.clamp(lo, hi))
             .collect()
     }
-    /// Whether coordinate `k` of `x` lies beyond its bound (the projection holds it there;
-    /// only L-BFGS gets there).
+    /// Whether coordinate `k` of `x` lies beyond its bound (the projection holds it there).
     fn outside(&self, x: &[f64], k: usize) -> bool {
         let (lo, hi) = self.bounds[k];
         x[k] < lo || x[k] > hi
@@ -461,10 +458,6 @@ impl Objective for Bounded<'_> {
             }
         }
         Ok((cost, g))
-    }
-
-    fn bounds(&self) -> Option<&[(f64, f64)]> {
-        Some(&self.bounds)
     }
 }
 

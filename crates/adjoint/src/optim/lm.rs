@@ -29,22 +29,13 @@
 //! [`GaussNewtonObjective::eval_gn`] (the matrix is needed there once the step is
 //! accepted); an iteration is one accepted step, rejections only cost evaluations.
 //!
-//! **Bounds** ([`Objective::bounds`](super::Objective::bounds)): the start and every trial
-//! point are projected onto the box, `x+ = P(x + h)`, and the gain ratio uses the step taken,
-//! `L(0) - L(h') = -g'h' - 1/2 h'Hh'` with `h' = x+ - x` (a projected Levenberg-Marquardt step,
-//! Kanzow, Yamashita & Fukushima 2004). A coordinate that sits on a bound with its gradient
-//! pointing out of the box is held (its gradient component and its row and column of `H`
-//! are zeroed, so its `h` is 0, and the convergence test sees the projected gradient); every
-//! other coordinate on a bound is free to come back. An iterate never leaves the box, so a
-//! coordinate that a long early step carries to a bound is not lost there.
-//!
 //! **Resuming:** start again from the last recorded `x`; the damping restarts from
 //! `initial_damping` (pass a larger one to resume cautiously).
 
 use std::ops::ControlFlow;
 
 use super::cholesky::Cholesky;
-use super::run::{add_scaled, dot, norm2, start_failed, EvalFailure, Point, Run};
+use super::run::{add_scaled, dot, norm2, start_failed, EvalFailure, Run};
 use super::types::{Damping, GaussNewtonObjective, IterationRecord, OptimParams, OptimResult, Termination};
 
 /// Damping beyond which no step can make progress.
@@ -73,16 +64,8 @@ pub fn levenberg_marquardt<O: GaussNewtonObjective + ?Sized>(
     callback: &mut dyn FnMut(&IterationRecord) -> ControlFlow<()>,
 ) -> OptimResult {
     let n = x0.len();
-    let bounds: Option<Vec<(f64, f64)>> = objective.bounds().map(<[_]>::to_vec);
-    let project = |x: Vec<f64>| match &bounds {
-        Some(b) => x.iter().zip(b).map(|(&v, &(lo, hi))| v.max(lo).min(hi)).collect(),
-        None => x,
-    };
     let mut run = Run::new(params, callback);
-    let (mut current, mut hessian) = run
-        .eval_gn(objective, &project(x0.to_vec()))
-        .map_err(start_failed)?;
-    hold(bounds.as_deref(), &mut current, &mut hessian);
+    let (mut current, mut hessian) = run.eval_gn(objective, x0).map_err(start_failed)?;
     if let Some(t) = run.start(&current) {
         return run.finish(t);
     }
@@ -113,30 +96,16 @@ pub fn levenberg_marquardt<O: GaussNewtonObjective + ?Sized>(
                 continue;
             };
             let minus_g: Vec<f64> = current.gradient.iter().map(|v| -v).collect();
-            let mut h = chol.solve(&minus_g);
-            let x = project(add_scaled(&current.x, 1.0, &h));
-            let projected = x.iter().zip(&current.x).zip(&h).any(|((a, b), d)| a - b != *d);
-            let predicted = if projected {
-                h = x.iter().zip(&current.x).map(|(a, b)| a - b).collect();
-                let hh: f64 = (0..n).map(|i| h[i] * dot(&hessian[i * n..(i + 1) * n], &h)).sum();
-                -dot(&h, &current.gradient) - 0.5 * hh
-            } else {
-                let scaled_h: Vec<f64> = (0..n).map(|i| mu * scale[i] * h[i]).collect();
-                0.5 * (dot(&h, &scaled_h) - dot(&h, &current.gradient))
-            };
+            let h = chol.solve(&minus_g);
             let step_norm = norm2(&h);
+            let x = add_scaled(&current.x, 1.0, &h);
             if run.small_step(step_norm, &current.x) || x == current.x {
                 return run.finish(Termination::StepTolerance);
             }
-            if predicted <= 0.0 {
-                // the projection turned the step uphill on the model: damp and retry
-                rejections += 1;
-                raise(&mut mu, &mut nu);
-                continue;
-            }
+            let scaled_h: Vec<f64> = (0..n).map(|i| mu * scale[i] * h[i]).collect();
+            let predicted = 0.5 * (dot(&h, &scaled_h) - dot(&h, &current.gradient));
             match run.eval_gn(objective, &x) {
-                Ok((mut p, mut hp)) => {
-                    hold(bounds.as_deref(), &mut p, &mut hp);
+                Ok((p, hp)) => {
                     failures = 0;
                     let rho = (current.cost - p.cost) / predicted;
                     if rho > 0.0 && p.cost < current.cost {
@@ -162,23 +131,6 @@ pub fn levenberg_marquardt<O: GaussNewtonObjective + ?Sized>(
         update_scale(&mut scale, &hessian, params.damping);
         if let Some(t) = run.accept(reference, &current, step_norm) {
             return run.finish(t);
-        }
-    }
-}
-
-/// Zeroes the gradient component and the Gauss-Newton row and column of every coordinate of
-/// `point` that sits on a bound with its gradient pointing out of the box (module docs).
-fn hold(bounds: Option<&[(f64, f64)]>, point: &mut Point, hessian: &mut [f64]) {
-    let Some(bounds) = bounds else { return };
-    let n = point.x.len();
-    for (k, &(lo, hi)) in bounds.iter().enumerate() {
-        let (x, g) = (point.x[k], point.gradient[k]);
-        if (x <= lo && g > 0.0) || (x >= hi && g < 0.0) {
-            point.gradient[k] = 0.0;
-            for j in 0..n {
-                hessian[k * n + j] = 0.0;
-                hessian[j * n + k] = 0.0;
-            }
         }
     }
 }

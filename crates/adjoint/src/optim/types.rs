@@ -42,15 +42,6 @@ impl EvalError {
 pub trait Objective {
     /// The cost `f(x)` and its gradient `grad f(x)`.
     fn eval(&mut self, x: &[f64]) -> Result<(f64, Vec<f64>), EvalError>;
-
-    /// The box `(lo, hi)` per coordinate that the iterates must stay in, if any.
-    /// [`levenberg_marquardt`](super::levenberg_marquardt) projects its start and every trial
-    /// point onto it (a bounded objective then zeroes the gradient and the Gauss-Newton rows
-    /// of the coordinates that a bound holds, see its module docs); the line-search methods
-    /// ignore it.
-    fn bounds(&self) -> Option<&[(f64, f64)]> {
-        None
-    }
 }
 
 /// Cost, gradient and Gauss-Newton matrix at one point, see [`GaussNewtonObjective`].

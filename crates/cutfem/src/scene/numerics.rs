@@ -6,7 +6,7 @@ use serde::Deserialize;
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct NumericsSection {
-    /// how the Nitsche terms are integrated: "consistent" (default) or "thesis"
+    /// how the Nitsche terms are integrated: "thesis" (default) or "consistent"
     /// ([`crate::fem::NitscheQuadrature`])
     #[serde(default)]
     pub nitsche: crate::fem::NitscheQuadrature,

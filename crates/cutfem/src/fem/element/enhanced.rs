@@ -76,6 +76,7 @@ use gpumat::{Mat3, Vec3};
 #[serde(rename_all = "snake_case")]
 pub enum Element {
     /// the thesis' element: trilinear, corner rule (sec. 4.4.1.1)
+    #[default]
     Trilinear,
     /// trilinear, exact integration over the cut part
     TrilinearExact,
@@ -83,7 +84,6 @@ pub enum Element {
     IncompatibleCorner,
     /// trilinear with incompatible modes, exact integration (the most accurate: see
     /// `docs/simulation.md`, "Element")
-    #[default]
     Incompatible,
 }
 
