@@ -1,14 +1,16 @@
 //! The distance of observed points to the simulated surface mesh: the surface `softbody
-//! simulate` writes and `softbody observe` renders (marching cubes on the reference SDF, each
-//! vertex moved by the displacement interpolated along its grid edge, sec. 4.5.1).
+//! simulate` writes and `softbody observe` renders ([`cutfem::fem::Grid::surface`]: marching
+//! cubes on the body's SDF, by default sampled finer than the simulation grid, each vertex
+//! moved by the trilinear displacement of its cell; on the grid itself, the interpolation
+//! along the vertex's grid edge of sec. 4.5.1).
 //!
 //! For a point `p` and the deformed mesh, `q` is the closest point on the closest triangle
 //! (barycentric `b_i` on vertices `X_i`), and the residual is the signed distance
 //! `r = s |p - q|`, `s = sign(n . (p - q))` with `n` the triangle's outward normal. By the
 //! envelope theorem `dr/dX_i = -b_i m` with `m = (p - q) / r` (the normal `n` where the
-//! projection falls inside the triangle), and each vertex `X_v = (1-t)(x_a + u_a) + t(x_b + u_b)`
-//! is linear in the displacements of the two grid nodes of its edge, which are degrees of
-//! freedom (both corners of a cut cell). No diffusion is needed.
+//! projection falls inside the triangle), and each vertex is linear in the displacements of
+//! the grid nodes that move it (`X_v = x_v + sum w_i u_i`,
+//! [`cutfem::surface::Embedding`]), which are degrees of freedom. No diffusion is needed.
 //!
 //! Compared with the thesis' level-set cost ([`crate::cost::PointCloudCost`], eq. 5.4.4-5.4.5),
 //! whose zero set is the trilinear interpolant of `phi` in each deformed cell, this residual is
@@ -22,7 +24,7 @@
 use crate::cost::{frame_points, gauss_newton_matrix, Cost, FrameCost, ObservedPoint, Robust};
 use cutfem::fem::grid::INACTIVE;
 use cutfem::fem::Grid;
-use cutfem::surface::{extract_surface, Surface};
+use cutfem::surface::Surface;
 use gpumat::{Matrix, Vec3};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -45,14 +47,35 @@ pub struct MeshHit {
 #[derive(Debug)]
 pub struct SurfaceCost {
     surface: Surface,
-    /// per vertex: the dofs of its edge's nodes and the weight of the second
-    vertex_dofs: Vec<(u32, u32, f64)>,
+    /// per vertex: the dofs of the nodes that move it and their weights
+    vertex_dofs: Vec<VertexDofs>,
     h: f64,
     frames: Vec<(usize, Vec<ObservedPoint>)>,
     /// the loss
     pub robust: Robust,
     /// residual charged to a point far from every triangle
     pub outside_residual: f64,
+}
+
+/// The degrees of freedom that move one surface vertex, `u = sum w_i u_i` (unused entries:
+/// [`INACTIVE`], weight 0).
+#[derive(Clone, Copy, Debug)]
+struct VertexDofs {
+    dofs: [u32; 8],
+    weights: [f64; 8],
+}
+
+impl VertexDofs {
+    /// `sum w_i u_i` of the dof vector `u`.
+    fn apply(&self, u: &[Vec3<f64>]) -> Vec3<f64> {
+        let mut s = Vec3::default();
+        for (&d, &w) in self.dofs.iter().zip(&self.weights) {
+            if d != INACTIVE {
+                s = s + node_u(u, d) * w;
+            }
+        }
+        s
+    }
 }
 
 /// The closest point of triangle `(a, b, c)` to `p`, as barycentric coordinates (Ericson,
@@ -176,13 +199,24 @@ impl SurfaceCost {
         if grid.dofs() == 0 {
             return Err("surface cost: the body has no degrees of freedom".into());
         }
-        let surface = extract_surface(&grid.sdf);
-        let mut vertex_dofs = Vec::with_capacity(surface.vertex_count());
-        for e in &surface.vertex_edges {
-            // a node without a degree of freedom (an edge touching the surface only within
-            // the snapping tolerance) does not move, as in `softbody simulate`
-            vertex_dofs.push((grid.node_dofs[e.a], grid.node_dofs[e.b], e.t));
-        }
+        let surface = grid.surface().map_err(|e| e.to_string())?;
+        // a node without a degree of freedom (an edge touching the surface only within the
+        // snapping tolerance) does not move, as in `softbody simulate`
+        let vertex_dofs = surface
+            .vertex_nodes
+            .iter()
+            .map(|e| {
+                let mut d = VertexDofs {
+                    dofs: [INACTIVE; 8],
+                    weights: [0.0; 8],
+                };
+                for (i, (n, w)) in e.terms().enumerate() {
+                    d.dofs[i] = grid.node_dofs[n];
+                    d.weights[i] = w;
+                }
+                d
+            })
+            .collect();
         let h = grid.h();
         Ok(Self {
             surface,
@@ -220,7 +254,7 @@ impl SurfaceCost {
             .vertices
             .iter()
             .zip(&self.vertex_dofs)
-            .map(|(x, &(a, b, t))| Vec3::from_array(*x) + node_u(us, a) * (1.0 - t) + node_u(us, b) * t)
+            .map(|(x, d)| Vec3::from_array(*x) + d.apply(us))
             .collect()
     }
 
@@ -343,13 +377,12 @@ impl SurfaceCost {
     fn scatter(&self, hit: &MeshHit, s: f64, g: &mut [Vec3<f64>]) {
         let f = self.surface.mesh.faces[hit.face];
         for (k, &v) in f.iter().enumerate() {
-            let (a, b, t) = self.vertex_dofs[v as usize];
+            let vd = &self.vertex_dofs[v as usize];
             let dv = hit.direction * (-s * hit.bary[k]);
-            if a != INACTIVE {
-                g[a as usize] = g[a as usize] + dv * (1.0 - t);
-            }
-            if b != INACTIVE {
-                g[b as usize] = g[b as usize] + dv * t;
+            for (&d, &w) in vd.dofs.iter().zip(&vd.weights) {
+                if d != INACTIVE {
+                    g[d as usize] = g[d as usize] + dv * w;
+                }
             }
         }
     }
@@ -359,8 +392,7 @@ impl SurfaceCost {
         let f = self.surface.mesh.faces[hit.face];
         let mut s = 0.0;
         for (k, &v) in f.iter().enumerate() {
-            let (a, b, t) = self.vertex_dofs[v as usize];
-            let dx = node_u(du, a) * (1.0 - t) + node_u(du, b) * t;
+            let dx = self.vertex_dofs[v as usize].apply(du);
             s -= hit.bary[k] * hit.direction.dot(dx);
         }
         s

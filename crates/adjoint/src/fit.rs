@@ -47,8 +47,7 @@ pub fn scene_model(scene: &Scene, grid: &Grid) -> Result<Model, String> {
 
 /// The simulation of a scene (its grid, model and solver settings).
 pub fn scene_simulation(scene: &Scene) -> Result<Simulation, String> {
-    let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
-    let grid = Grid::new(sdf).map_err(|e| e.to_string())?;
+    let grid = scene.grid().map_err(|e| e.to_string())?;
     let model = scene_model(scene, &grid)?;
     // a model that cannot be simulated names the scene and the key
     let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", scene.path.display()))?;

@@ -254,8 +254,7 @@ fn at_resolution(
     model: &Model,
     resolution: f64,
 ) -> Result<(Grid, Model), String> {
-    let sdf = scene.body_sdf_at(Some(resolution)).map_err(|e| e.to_string())?;
-    let other = Grid::new(sdf).map_err(|e| e.to_string())?;
+    let other = scene.grid_at(Some(resolution)).map_err(|e| e.to_string())?;
     let mut m = scene_model(scene, &other)?;
     carry_model(model, grid, &mut m, &other);
     Ok((other, m))

@@ -13,6 +13,7 @@
 //! command builds its model) and builds its physics; [`Scene::to_model`] alone leaves them out.
 //! An effect name in `[model].effects` that is not a core effect is such an extension effect.
 
+mod build;
 mod check;
 mod extensions;
 mod mesh_cache;
@@ -21,7 +22,9 @@ mod numerics;
 pub use check::{check_steps, dedupe_prefixes, non_finite, quote, shorten_quotes, MAX_QUOTE, MAX_STEPS};
 pub use extensions::{Extension, SECTIONS};
 use mesh_cache::{mesh_cache_get, mesh_cache_put};
-pub use numerics::{DiffusionName, NumericsSection, PreconditionerName};
+pub use numerics::{
+    DiffusionName, NumericsSection, PreconditionerName, DEFAULT_SURFACE_SUBDIVISION, MAX_SURFACE_SUBDIVISION,
+};
 
 use crate::error::Error;
 use crate::fem::{Aabb, Ground, Model};

@@ -108,14 +108,16 @@ pub fn run(a: Args) -> Result<(), String> {
     let frames_dir = out.join("frames");
     std::fs::create_dir_all(&frames_dir).map_err(|e| format!("{}: {e}", frames_dir.display()))?;
 
-    let sdf = scene.body_sdf().map_err(|e| e.to_string())?;
-    let grid = Grid::new(sdf).map_err(|e| format!("{}: {e}", a.scene.display()))?;
+    let grid = scene.grid().map_err(|e| e.to_string())?;
     // the scene's model with its model-level effects (e.g. `wind`)
     let model =
         adjoint::fit::scene_model(&scene, &grid).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     sim.solver = adjoint::fit::solver_settings(&scene, sim.solver);
-    let surface = extract_surface(&sim.grid.sdf);
+    let surface = sim
+        .grid
+        .surface()
+        .map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let extension = match scene.numerics.diffusion {
         DiffusionName::Harmonic => Extension::Harmonic,
         DiffusionName::Linear => Extension::Linear,

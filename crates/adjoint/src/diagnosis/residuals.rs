@@ -494,7 +494,7 @@ pub fn surfaces_at(
     model: Model,
     frame: usize,
 ) -> Result<(cutfem::TriMesh, cutfem::TriMesh), String> {
-    let surface = cutfem::surface::extract_surface(&sim.grid.sdf);
+    let surface = sim.grid.surface().map_err(|e| e.to_string())?;
     sim.reset(model).map_err(|e| e.to_string())?;
     for t in 1..=frame {
         sim.step().map_err(|e| format!("step {t}: {e}"))?;

@@ -272,7 +272,7 @@ pub fn synthesize(
     let mut model = sim.model.clone();
     edit(&sim.grid, &mut model);
     sim.reset(model).map_err(|e| e.to_string())?;
-    let surface = cutfem::surface::extract_surface(&sim.grid.sdf);
+    let surface = sim.grid.surface().map_err(|e| e.to_string())?;
     let (lo, hi) = surface
         .mesh
         .bounding_box()

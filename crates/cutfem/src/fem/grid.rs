@@ -48,6 +48,9 @@ pub struct Grid {
     pub node_dofs: Vec<u32>,
     /// reference position of each degree of freedom
     pub positions: Vec<Vec3<f64>>,
+    /// the body's SDF sampled finer than [`Grid::sdf`], from which the observed surface is
+    /// extracted ([`Grid::surface`]); `None`: the surface comes from `sdf` itself
+    pub surface_sdf: Option<SdfGrid>,
 }
 
 /// Memory (bytes) one active node costs in the simulation: the 27 BSR blocks of K and A in
@@ -173,7 +176,28 @@ impl Grid {
             dof_nodes,
             node_dofs,
             positions,
+            surface_sdf: None,
         })
+    }
+
+    /// The grid with the body's surface taken from `fine`, the same body's SDF sampled finer
+    /// (for example `[numerics] surface_subdivision` times; [`Grid::surface`]).
+    pub fn with_surface_sdf(mut self, fine: SdfGrid) -> Self {
+        self.surface_sdf = Some(fine);
+        self
+    }
+
+    /// The body's surface as it is shown, observed and compared with measurements: marching
+    /// cubes on [`Grid::surface_sdf`] (else on [`Grid::sdf`]), every vertex moved by the
+    /// trilinear displacement field of the simulation cell that holds it
+    /// ([`crate::surface::embed`]).
+    pub fn surface(&self) -> Result<crate::surface::Surface, Error> {
+        let Some(fine) = &self.surface_sdf else {
+            return Ok(crate::surface::extract_surface(&self.sdf));
+        };
+        crate::surface::extract_surface(fine)
+            .embedded_in(&self.sdf, |n| self.node_dofs[n] != INACTIVE)
+            .map_err(Error::Invalid)
     }
 
     /// Number of degrees of freedom (active nodes).

@@ -177,6 +177,16 @@ impl Scene {
         self.numerics
             .nitsche_penalty()
             .map_err(|e| Error::format(path, e))?;
+        let s = self.numerics.surface_subdivision;
+        if !(1..=super::numerics::MAX_SURFACE_SUBDIVISION).contains(&s) {
+            return Err(Error::format(
+                path,
+                format!(
+                    "numerics.surface_subdivision: {s} is not in 1..={}",
+                    super::numerics::MAX_SURFACE_SUBDIVISION
+                ),
+            ));
+        }
         self.to_model()
             .validate()
             .map_err(|e| Error::format(path, e.to_string()))

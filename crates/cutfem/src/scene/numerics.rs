@@ -32,11 +32,19 @@ pub struct NumericsSection {
     /// or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
     pub preconditioner: PreconditionerName,
-    /// the grid element: "incompatible" (default), "trilinear" (the thesis'),
-    /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
+    /// the grid element: "trilinear" (the thesis', default), "trilinear_exact",
+    /// "incompatible", "incompatible_corner" ([`crate::fem::element::Element`])
     #[serde(default)]
     pub element: crate::fem::element::Element,
+    /// the observed surface is extracted from the body's SDF sampled this many times finer than
+    /// the simulation grid (1: on the grid itself, as the thesis does), each vertex moved by
+    /// the trilinear field of its cell ([`crate::fem::Grid::surface`]); 1..=8
+    #[serde(default = "surface_subdivision")]
+    pub surface_subdivision: usize,
 }
+
+/// Largest `[numerics].surface_subdivision`.
+pub const MAX_SURFACE_SUBDIVISION: usize = 8;
 
 /// `[numerics].preconditioner`
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
@@ -77,6 +85,11 @@ fn cg_tol() -> f64 {
 fn cg_max() -> usize {
     2000
 }
+fn surface_subdivision() -> usize {
+    DEFAULT_SURFACE_SUBDIVISION
+}
+/// Default `[numerics].surface_subdivision`.
+pub const DEFAULT_SURFACE_SUBDIVISION: usize = 2;
 impl Default for NumericsSection {
     fn default() -> Self {
         Self {
@@ -88,6 +101,7 @@ impl Default for NumericsSection {
             diffusion: DiffusionName::default(),
             preconditioner: PreconditionerName::default(),
             element: crate::fem::element::Element::default(),
+            surface_subdivision: surface_subdivision(),
         }
     }
 }

@@ -52,8 +52,10 @@
 //! inside nodes lie on the grid boundary the surface is open there (there are no cells beyond
 //! the grid to close it).
 
+mod embed;
 mod ply;
 
+pub use embed::{embed, Embedding};
 pub use ply::{write_ply, write_ply_with_scalar};
 
 use crate::{SdfGrid, TriMesh};
@@ -86,25 +88,32 @@ impl EdgePoint {
     }
 }
 
-/// A surface mesh extracted from an SDF grid, with the grid edge of every vertex.
+/// A surface mesh extracted from an SDF grid, with the grid edge of every vertex and the
+/// simulation-grid nodes that move it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Surface {
     /// the triangle mesh in the reference configuration (counter-clockwise seen from outside)
     pub mesh: TriMesh,
-    /// for vertex `v`, the grid edge it lies on (`vertex_edges.len() == mesh.vertices.len()`)
+    /// for vertex `v`, the edge of the extraction grid it lies on (`vertex_edges.len() ==
+    /// mesh.vertices.len()`)
     pub vertex_edges: Vec<EdgePoint>,
+    /// for vertex `v`, the simulation-grid nodes and weights that move it: its grid edge when
+    /// the surface was extracted on the simulation grid ([`extract_surface`]), its trilinear
+    /// embedding when it came from a finer SDF ([`Surface::embedded_in`])
+    pub vertex_nodes: Vec<Embedding>,
 }
 
 impl Surface {
     /// The mesh with every vertex moved by the interpolated nodal displacement
-    /// `(1 - t) u(a) + t u(b)` (thesis sec. 4.5.1); `displacement` maps a linear node index of
-    /// the grid to that node's displacement. The faces are copied from the reference mesh.
+    /// `sum w_i u(n_i)` of its [`Surface::vertex_nodes`] (on a grid edge `(1 - t) u(a) + t
+    /// u(b)`, thesis sec. 4.5.1); `displacement` maps a linear node index of the simulation
+    /// grid to that node's displacement. The faces are copied from the reference mesh.
     pub fn deformed(&self, displacement: impl Fn(usize) -> [f64; 3]) -> TriMesh {
         let vertices = self
             .mesh
             .vertices
             .iter()
-            .zip(&self.vertex_edges)
+            .zip(&self.vertex_nodes)
             .map(|(x, e)| {
                 let u = e.interpolate(&displacement);
                 [x[0] + u[0], x[1] + u[1], x[2] + u[2]]
@@ -119,6 +128,30 @@ impl Surface {
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.mesh.vertices.len()
+    }
+
+    /// The surface with every vertex embedded in the simulation grid `grid` (its origin,
+    /// spacing and dimensions; [`embed`]), using only nodes for which `has_dof` holds. Errors
+    /// name the first vertex farther than a cell from every such cell.
+    pub fn embedded_in(mut self, grid: &SdfGrid, has_dof: impl Fn(usize) -> bool) -> Result<Self, String> {
+        let nodes: Vec<Option<Embedding>> = self
+            .mesh
+            .vertices
+            .iter()
+            .map(|&x| embed(grid, x, &has_dof))
+            .collect();
+        self.vertex_nodes = Vec::with_capacity(nodes.len());
+        for (v, e) in nodes.into_iter().enumerate() {
+            let x = self.mesh.vertices[v];
+            self.vertex_nodes.push(e.ok_or_else(|| {
+                format!(
+                    "surface: vertex {v} at ({:.4}, {:.4}, {:.4}) lies more than a cell away \
+                     from the simulated body",
+                    x[0], x[1], x[2]
+                )
+            })?);
+        }
+        Ok(self)
     }
 }
 
@@ -335,6 +368,7 @@ pub fn extract_surface(sdf: &SdfGrid) -> Surface {
                         }
                         surface.mesh.vertices.push(x);
                         surface.vertex_edges.push(EdgePoint { a, b, t });
+                        surface.vertex_nodes.push(Embedding::on_edge(a, b, t));
                         (surface.mesh.vertices.len() - 1) as u32
                     });
                     vid[e] = id;
