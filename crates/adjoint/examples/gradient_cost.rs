@@ -4,8 +4,9 @@
 //! ```sh
 //! cargo run --release -p adjoint --example gradient_cost -- SCENE OBS.csv [params]
 //! ```
+use adjoint::camera_file::CameraFile;
 use adjoint::cost::Robust;
-use adjoint::fit::{cameras_path, read_camera_eyes, scene_problem, CostKind};
+use adjoint::fit::{cameras_path, scene_problem, CostKind};
 use adjoint::observations::Observations;
 use adjoint::params::ParamSet;
 use cutfem::scene::Scene;
@@ -20,7 +21,7 @@ fn main() -> Result<(), String> {
     let obs_path = PathBuf::from(&args[1]);
     let obs = Observations::read_csv(&obs_path).map_err(|e| e.to_string())?;
     let eyes = match cameras_path(&obs_path) {
-        p if p.exists() => read_camera_eyes(&p)?,
+        p if p.exists() => CameraFile::read(&p)?.eyes(),
         _ => Vec::new(),
     };
     let params = ParamSet::parse(&[args.get(2).map_or("young,poisson", String::as_str)])?;

@@ -11,8 +11,9 @@
 //! degrees of freedom as components when the effect is absent). Also prints `H` as a
 //! correlation matrix: components whose columns are nearly parallel cannot be told apart by
 //! the data.
+use adjoint::camera_file::CameraFile;
 use adjoint::cost::Robust;
-use adjoint::fit::{cameras_path, invert_small, read_camera_eyes, scene_problem, CostKind};
+use adjoint::fit::{cameras_path, invert_small, scene_problem, CostKind};
 use adjoint::observations::Observations;
 use adjoint::params::ParamSet;
 use cutfem::scene::Scene;
@@ -27,7 +28,7 @@ fn main() -> Result<(), String> {
     let obs_path = PathBuf::from(&args[1]);
     let obs = Observations::read_csv(&obs_path).map_err(|e| e.to_string())?;
     let eyes = match cameras_path(&obs_path) {
-        p if p.exists() => read_camera_eyes(&p)?,
+        p if p.exists() => CameraFile::read(&p)?.eyes(),
         _ => Vec::new(),
     };
     let params = ParamSet::parse(&[args[2].as_str()])?;

@@ -114,20 +114,6 @@ pub fn cameras_path(observations: &std::path::Path) -> std::path::PathBuf {
     observations.with_extension("cameras.json")
 }
 
-/// Reads the camera eyes of a camera file (index = camera id), checked by
-/// [`crate::camera_file::CameraFile`].
-pub fn read_camera_eyes(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String> {
-    Ok(crate::camera_file::CameraFile::read(path)?.eyes())
-}
-
-pub use crate::camera_file::MAX_CAMERA_PIXELS;
-
-/// Reads the cameras of a camera file with their intrinsics (`eye`, `target`, `up`, `fov_y`,
-/// `width`, `height`; index = camera id), checked by [`crate::camera_file::CameraFile`].
-pub fn read_cameras(path: &std::path::Path) -> Result<Vec<crate::observe::Camera>, String> {
-    crate::camera_file::CameraFile::read(path)?.cameras()
-}
-
 /// The point-cloud reconstruction problem of a scene: its simulation, `steps` steps (default:
 /// the scene's), the parameters and the observations.
 pub fn scene_problem(

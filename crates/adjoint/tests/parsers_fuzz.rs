@@ -1,10 +1,10 @@
 //! Fuzzing the observation CSV parser (`Observations::parse_csv`, `read_csv`), the camera file
-//! parser (`adjoint::fit::read_camera_eyes`, `read_cameras`) and the scene's extension
-//! sections (`adjoint::fit::scene_simulation`, which checks them) with proptest: random bytes
-//! and random mutations of valid files (byte flips, truncation, duplicated, removed and swapped
-//! lines, huge, tiny, negative, non-finite and overflowing numbers, inserted syntax). Whatever
-//! the input: `Ok` or an `Err` naming the file, never a panic; a parsed CSV holds only finite
-//! coordinates and finite, non-negative weights.
+//! parser (`adjoint::camera_file::CameraFile::read`, then its `eyes` and `cameras`) and the
+//! scene's extension sections (`adjoint::fit::scene_simulation`, which checks them) with
+//! proptest: random bytes and random mutations of valid files (byte flips, truncation,
+//! duplicated, removed and swapped lines, huge, tiny, negative, non-finite and overflowing
+//! numbers, inserted syntax). Whatever the input: `Ok` or an `Err` naming the file, never a
+//! panic; a parsed CSV holds only finite coordinates and finite, non-negative weights.
 //!
 //! The strategies are `cutfem/tests/fuzz_common` (included by path). Each property runs
 //! `DEFAULT_CASES` cases (a few seconds, as in CI); for a longer run set `PROPTEST_CASES`, e.g.
@@ -13,7 +13,8 @@
 #[path = "../../cutfem/tests/fuzz_common/mod.rs"]
 mod fuzz_common;
 
-use adjoint::fit::{read_camera_eyes, read_cameras, scene_simulation};
+use adjoint::camera_file::CameraFile;
+use adjoint::fit::scene_simulation;
 use adjoint::observations::Observations;
 use cutfem::scene::Scene;
 use fuzz_common::{apply, bytes, config, mutations};
@@ -90,11 +91,11 @@ fn check_csv(
 
 fn check_cameras(bytes: &[u8]) -> Result<(), TestCaseError> {
     let path = scratch("fuzz.cameras.json", bytes);
-    match read_camera_eyes(&path) {
+    match CameraFile::read(&path).map(|f| f.eyes()) {
         Ok(_) => {}
         Err(e) => prop_assert!(e.contains("fuzz.cameras.json"), "{}", e),
     }
-    match read_cameras(&path) {
+    match CameraFile::read(&path).and_then(|f| f.cameras()) {
         Ok(cams) => {
             for c in &cams {
                 prop_assert!((1..=8192).contains(&c.width) && (1..=8192).contains(&c.height));
@@ -113,7 +114,7 @@ fn seeds_are_valid() {
             .is_empty());
     }
     let p = scratch("seed.cameras.json", CAMERA_SEED.as_bytes());
-    assert_eq!(read_cameras(&p).unwrap().len(), 2);
+    assert_eq!(CameraFile::read(&p).unwrap().cameras().unwrap().len(), 2);
     let scene = Scene::parse(WIND_SEED, Path::new("seed.toml")).unwrap();
     scene_simulation(&scene).unwrap();
 }

@@ -16,52 +16,32 @@ use std::process::Command;
 mod common;
 use common::*;
 
+/// The tiny bar of 4 steps ([`tiny_bar`]) made larger (0.8 x 0.3 x 0.3, clamped at
+/// x <= -0.3) and damped, at `resolution` with `young` and the model's `effects`, and a `[fit]`
+/// of `young` and `poisson` by Gauss-Newton.
 fn scene(resolution: u32, young: f64, effects: &str) -> String {
-    format!(
-        r#"
-[body]
-shape = {{ kind = "box", center = [0.0, 1.0, 0.0], size = [0.8, 0.3, 0.3] }}
-resolution = {resolution}
-[material]
-young = {young}
-poisson = 0.3
-[damping]
-mass = 0.1
-stiffness = 0.01
-[gravity]
-acceleration = [0.0, -10.0, 0.0]
-[[dirichlet]]
-min = [-1.0, 0.0, -1.0]
-max = [-0.3, 2.0, 1.0]
-[time]
-dt = 0.01
-steps = 4
-[model]
-effects = [{effects}]
-[fit]
-parameters = ["young", "poisson"]
-optimizer = "gauss-newton"
-iterations = 3
-"#
+    let extra = format!(
+        "[damping]\nmass = 0.1\nstiffness = 0.01\n[model]\neffects = [{effects}]\n\
+         [fit]\nparameters = [\"young\", \"poisson\"]\noptimizer = \"gauss-newton\"\n\
+         iterations = 3"
+    );
+    let resolution = format!("resolution = {resolution}");
+    let young = format!("young = {young:?}");
+    edited(
+        &tiny_bar(4, &extra),
+        &[
+            ("size = [0.6, 0.2, 0.3]", "size = [0.8, 0.3, 0.3]"),
+            ("max = [-0.2, 2.0, 1.0]", "max = [-0.3, 2.0, 1.0]"),
+            ("resolution = 10", &resolution),
+            ("young = 2000.0", &young),
+        ],
     )
 }
 
 /// Observations (3 cameras of 32 x 32 pixels) of the scene with `effects` and E = 2000.
 fn observe(dir: &Path, resolution: u32, effects: &str) -> PathBuf {
-    let truth = write(dir, "truth.toml", &scene(resolution, 2000.0, effects));
-    let obs = dir.join("obs.csv");
-    json(&run(&[
-        "observe",
-        truth.to_str().unwrap(),
-        "--out",
-        obs.to_str().unwrap(),
-        "--cameras",
-        "3",
-        "--pixels",
-        "32",
-        "--json",
-    ]));
-    obs
+    let truth = scene(resolution, 2000.0, effects);
+    observed(dir, &truth, &["--cameras", "3", "--pixels", "32"]).0
 }
 
 /// `json` without its timing, with the strings naming `run_dir` relative to `RUN`.
@@ -130,14 +110,25 @@ fn run_with(threads: usize, root: &Path, scene: &str, args: &[&str]) -> (Value, 
     (v, log)
 }
 
-/// The runs on 1 and 2 threads agree bit for bit.
-fn assert_thread_independent(root: &Path, scene: &str, args: &[&str]) -> Value {
-    let (one, log_one) = run_with(1, root, scene, args);
-    let (two, log_two) = run_with(2, root, scene, args);
+/// `softbody COMMAND {run}/scene.toml --observations OBS --out {run}/out --json` ([`run_with`]):
+/// the runs on 1 and 2 threads agree bit for bit.
+fn assert_thread_independent(root: &Path, scene: &str, command: &str, obs: &Path) -> Value {
+    let ob = obs.to_str().unwrap();
+    let args = [
+        command,
+        "{run}/scene.toml",
+        "--observations",
+        ob,
+        "--out",
+        "{run}/out",
+        "--json",
+    ];
+    let (one, log_one) = run_with(1, root, scene, &args);
+    let (two, log_two) = run_with(2, root, scene, &args);
     if let Some(d) = first_difference(&one, &two, "") {
-        panic!("{}: 1 vs 2 threads differ at {d}", args[0]);
+        panic!("{command}: 1 vs 2 threads differ at {d}");
     }
-    assert_eq!(log_one, log_two, "{}: fit.log differs", args[0]);
+    assert_eq!(log_one, log_two, "{command}: fit.log differs");
     one
 }
 
@@ -146,17 +137,7 @@ fn fit_is_bit_identical_on_1_and_2_threads() {
     let dir = tmp("determinism", "fit");
     let obs = observe(&dir, 24, "\"gravity\", \"damping\", \"corotation\"");
     let start = scene(24, 2600.0, "\"gravity\", \"damping\", \"corotation\"");
-    let ob = obs.to_str().unwrap();
-    let args = [
-        "fit",
-        "{run}/scene.toml",
-        "--observations",
-        ob,
-        "--out",
-        "{run}/out",
-        "--json",
-    ];
-    let v = assert_thread_independent(&dir, &start, &args);
+    let v = assert_thread_independent(&dir, &start, "fit", &obs);
     // the run did work: parameters moved, rms fell, a log was written
     assert!(v["iterations"].as_u64().unwrap() >= 1, "{v}");
     let (e0, e) = (
@@ -176,17 +157,7 @@ fn diagnose_is_bit_identical_on_1_and_2_threads() {
     let obs = observe(&dir, 16, "\"gravity\", \"damping\", \"corotation\"");
     // the model lacks gravity
     let model = scene(16, 2000.0, "\"damping\", \"corotation\"");
-    let ob = obs.to_str().unwrap();
-    let args = [
-        "diagnose",
-        "{run}/scene.toml",
-        "--observations",
-        ob,
-        "--out",
-        "{run}/out",
-        "--json",
-    ];
-    let v = assert_thread_independent(&dir, &model, &args);
+    let v = assert_thread_independent(&dir, &model, "diagnose", &obs);
     assert!(v["rms"].as_f64().unwrap() > 0.0, "{v}");
     assert!(!v["candidates"].as_array().unwrap().is_empty(), "{v}");
     assert!(v["verdict"].is_string(), "{v}");

@@ -3,62 +3,24 @@
 //! written, and bad input gives one line naming the file or flag. `softbody demo` tells its
 //! story with the fields of interface.md.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 mod common;
 use common::*;
 
+/// The tiny bar of 8 steps ([`tiny_bar`]) with the model's `effects`.
 fn scene(effects: &str) -> String {
-    format!(
-        r#"
-[body]
-shape = {{ kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }}
-resolution = 10
-[material]
-young = 2000.0
-poisson = 0.3
-[gravity]
-acceleration = [0.0, -10.0, 0.0]
-[[dirichlet]]
-min = [-1.0, 0.0, -1.0]
-max = [-0.2, 2.0, 1.0]
-[time]
-dt = 0.01
-steps = 8
-[model]
-effects = [{effects}]
-"#
-    )
+    tiny_bar(8, &format!("[model]\neffects = [{effects}]"))
 }
 
 #[test]
 fn diagnose_finds_missing_gravity() {
     let dir = tmp("diagnose", "gravity");
-    let truth = write(&dir, "truth.toml", &scene("\"gravity\", \"corotation\""));
+    let truth = scene("\"gravity\", \"corotation\"");
     let model = write(&dir, "model.toml", &scene("\"corotation\""));
-    let obs = dir.join("obs.csv");
-    let o = run(&[
-        "observe",
-        truth.to_str().unwrap(),
-        "--out",
-        obs.to_str().unwrap(),
-        "--cameras",
-        "3",
-        "--pixels",
-        "32",
-        "--json",
-    ]);
-    json(&o);
+    let (obs, _) = observed(&dir, &truth, &["--cameras", "3", "--pixels", "32"]);
     let out = dir.join("report");
-    let args = [
-        "diagnose",
-        model.to_str().unwrap(),
-        "--observations",
-        obs.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-    ];
-    let v = json(&run(&args));
+    let diagnose = || run_on("diagnose", &model, &obs, &out, &["--json"]);
+    let v = json(&diagnose());
     // interface.md fields
     assert!(v["rms"].as_f64().unwrap() > 0.0);
     assert!(v["noise_floor"].as_f64().unwrap() >= 0.0);
@@ -87,7 +49,7 @@ fn diagnose_finds_missing_gravity() {
     // the history next to the scene grows by one line per run
     let hist = dir.join("model.history.jsonl");
     assert_eq!(std::fs::read_to_string(&hist).unwrap().lines().count(), 1);
-    json(&run(&args));
+    json(&diagnose());
     assert_eq!(std::fs::read_to_string(&hist).unwrap().lines().count(), 2);
     assert!(out.join("history.png").exists());
 }
@@ -96,36 +58,13 @@ fn diagnose_finds_missing_gravity() {
 fn diagnose_bad_input() {
     let dir = tmp("diagnose", "bad");
     let model = write(&dir, "model.toml", &scene("\"corotation\""));
-    let missing = dir.join("nope.csv");
-    one_line_error(
-        &run(&[
-            "diagnose",
-            model.to_str().unwrap(),
-            "--observations",
-            missing.to_str().unwrap(),
-        ]),
-        "nope.csv",
-    );
+    let diagnose = |obs: &Path, flags: &[&str]| {
+        let (m, o) = (model.to_str().unwrap(), obs.to_str().unwrap());
+        run(&[&["diagnose", m, "--observations", o], flags].concat())
+    };
+    one_line_error(&diagnose(&dir.join("nope.csv"), &[]), "nope.csv");
     let bad = write(&dir, "bad.csv", "frame,x,y,z\n1,0.0,1.0,zero\n");
-    one_line_error(
-        &run(&[
-            "diagnose",
-            model.to_str().unwrap(),
-            "--observations",
-            bad.to_str().unwrap(),
-        ]),
-        "bad.csv: line 2",
-    );
+    one_line_error(&diagnose(&bad, &[]), "bad.csv: line 2");
     let ok = write(&dir, "ok.csv", "frame,x,y,z\n1,0.0,1.0,0.0\n");
-    one_line_error(
-        &run(&[
-            "diagnose",
-            model.to_str().unwrap(),
-            "--observations",
-            ok.to_str().unwrap(),
-            "--cost",
-            "levelset",
-        ]),
-        "--cost",
-    );
+    one_line_error(&diagnose(&ok, &["--cost", "levelset"]), "--cost");
 }

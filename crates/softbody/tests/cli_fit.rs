@@ -6,48 +6,22 @@ use std::path::{Path, PathBuf};
 mod common;
 use common::*;
 
+/// The tiny bar of 8 steps ([`tiny_bar`]), damped, with `young` and `poisson` and a `[fit]` of
+/// both by Gauss-Newton.
 fn scene(young: f64, poisson: f64) -> String {
-    format!(
-        r#"
-[body]
-shape = {{ kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }}
-resolution = 10
-[material]
-young = {young}
-poisson = {poisson}
-[damping]
-mass = 0.1
-stiffness = 0.01
-[gravity]
-acceleration = [0.0, -10.0, 0.0]
-[[dirichlet]]
-min = [-1.0, 0.0, -1.0]
-max = [-0.2, 2.0, 1.0]
-[time]
-dt = 0.01
-steps = 8
-[fit]
-parameters = ["young", "poisson"]
-optimizer = "gauss-newton"
-iterations = 15
-"#
+    let extra = "[damping]\nmass = 0.1\nstiffness = 0.01\n\
+                 [fit]\nparameters = [\"young\", \"poisson\"]\noptimizer = \"gauss-newton\"\n\
+                 iterations = 15";
+    let (young, poisson) = (format!("young = {young:?}"), format!("poisson = {poisson:?}"));
+    edited(
+        &tiny_bar(8, extra),
+        &[("young = 2000.0", &young), ("poisson = 0.3", &poisson)],
     )
 }
 
 /// Observations of the truth (E = 2000, nu = 0.3) with 4 cameras.
 fn observe(dir: &Path) -> PathBuf {
-    let truth = write(dir, "truth.toml", &scene(2000.0, 0.3));
-    let obs = dir.join("obs.csv");
-    let o = run(&[
-        "observe",
-        truth.to_str().unwrap(),
-        "--out",
-        obs.to_str().unwrap(),
-        "--radius",
-        "2",
-        "--json",
-    ]);
-    let j = json(&o);
+    let (obs, j) = observed(dir, &scene(2000.0, 0.3), &["--radius", "2"]);
     assert!(j["points"].as_u64().unwrap() > 500);
     obs
 }
@@ -58,15 +32,7 @@ fn fit_recovers_the_truth_and_resumes() {
     let obs = observe(&dir);
     let start = write(&dir, "start.toml", &scene(2600.0, 0.35));
     let out = dir.join("report");
-    let o = run(&[
-        "fit",
-        start.to_str().unwrap(),
-        "--observations",
-        obs.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
+    let o = run_on("fit", &start, &obs, &out, &["--json"]);
     let j = json(&o);
     let e = j["parameters"]["young"].as_f64().unwrap();
     let nu = j["parameters"]["poisson"].as_f64().unwrap();
@@ -101,17 +67,13 @@ fn fit_recovers_the_truth_and_resumes() {
     // an interrupted fit: keep the first two logged iterations, then resume
     let kept: Vec<&str> = log.lines().take(2).collect();
     std::fs::write(out.join("fit.log"), kept.join("\n") + "\n").unwrap();
-    let o = run(&[
+    let o = run_on(
         "fit",
-        start.to_str().unwrap(),
-        "--observations",
-        obs.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--resume",
-        "--no-refine-check",
-        "--json",
-    ]);
+        &start,
+        &obs,
+        &out,
+        &["--resume", "--no-refine-check", "--json"],
+    );
     let j = json(&o);
     let h = j["history"].as_array().unwrap();
     assert_eq!(h[0]["iteration"], 0);
@@ -193,7 +155,7 @@ fn gradcheck_agrees_and_bad_input_is_one_line() {
     let badfit = write(
         &dir,
         "badfit.toml",
-        &scene(2000.0, 0.3).replace("iterations = 15", "iteration = 15"),
+        &edited(&scene(2000.0, 0.3), &[("iterations = 15", "iteration = 15")]),
     );
     one_line_error(
         &run(&["fit", badfit.to_str().unwrap(), "--observations", ob]),

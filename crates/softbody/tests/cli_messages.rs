@@ -43,14 +43,7 @@ fn long_bad_values_are_quoted_up_to_100_characters() {
     // a CSV field
     let s = write(&dir, "ok.toml", &format!("{BODY}{MATERIAL}{TIME}"));
     let csv = write(&dir, "long.csv", &format!("frame,x,y,z\n1,0,{long},0\n"));
-    let o = run(&[
-        "fit",
-        s.to_str().unwrap(),
-        "--observations",
-        csv.to_str().unwrap(),
-        "--out",
-        dir.join("fit").to_str().unwrap(),
-    ]);
+    let o = run_on("fit", &s, &csv, &dir.join("fit"), &[]);
     one_line_error(&o, &format!("long.csv: line 2: y is not a number: \"{cut}\""));
     assert!(stderr(&o).len() < 300, "{}", stderr(&o));
     // a flag
@@ -124,16 +117,11 @@ fn observe_refuses_to_write_no_point() {
     let dir = tmp("messages", "nothing");
     let s = write(&dir, "s.toml", &format!("{BODY}{MATERIAL}{TIME}"));
     let out = dir.join("o.csv");
-    let o = run(&[
-        "observe",
-        s.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--radius",
-        "1000",
-        "--pixels",
-        "2",
-    ]);
+    let observe = || {
+        let (s, out) = (s.to_str().unwrap(), out.to_str().unwrap());
+        run(&["observe", s, "--out", out, "--radius", "1000", "--pixels", "2"])
+    };
+    let o = observe();
     one_line_error(
         &o,
         "the 4 cameras saw no point of the body in the 2 frames observed",
@@ -141,16 +129,7 @@ fn observe_refuses_to_write_no_point() {
     assert!(!out.exists(), "a failed observe leaves no file");
     // an earlier file is left as it was
     std::fs::write(&out, "frame,x,y,z\n1,0,1,0\n").unwrap();
-    let o = run(&[
-        "observe",
-        s.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--radius",
-        "1000",
-        "--pixels",
-        "2",
-    ]);
+    let o = observe();
     one_line_error(&o, "saw no point");
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "frame,x,y,z\n1,0,1,0\n");
 }

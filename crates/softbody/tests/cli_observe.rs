@@ -10,27 +10,13 @@ use std::process::Output;
 mod common;
 use common::*;
 
-const SMALL: &str = r#"
-[body]
-shape = { kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }
-resolution = 10
-[material]
-young = 500.0
-poisson = 0.3
-[gravity]
-acceleration = [0.0, -10.0, 0.0]
-[[dirichlet]]
-min = [-1.0, 0.0, -1.0]
-max = [-0.2, 2.0, 1.0]
-[time]
-dt = 0.02
-steps = 4
-"#;
-
+/// The tiny bar of 4 steps ([`tiny_bar`]), softer (E = 500) and with steps of 0.02 s.
 fn scene(dir: &Path) -> PathBuf {
-    let p = dir.join("small.toml");
-    std::fs::write(&p, SMALL).unwrap();
-    p
+    let text = edited(
+        &tiny_bar(4, ""),
+        &[("young = 2000.0", "young = 500.0"), ("dt = 0.01", "dt = 0.02")],
+    );
+    write(dir, "small.toml", &text)
 }
 
 fn observe(scene: &Path, out: &Path, extra: &[&str]) -> Output {

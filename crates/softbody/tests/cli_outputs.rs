@@ -12,29 +12,6 @@ use std::time::{Duration, Instant};
 mod common;
 use common::*;
 
-/// A tiny cantilever with `steps` steps; `extra` is appended.
-fn scene(steps: usize, extra: &str) -> String {
-    format!(
-        r#"
-[body]
-shape = {{ kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }}
-resolution = 10
-[material]
-young = 2000.0
-poisson = 0.3
-[gravity]
-acceleration = [0.0, -10.0, 0.0]
-[[dirichlet]]
-min = [-1.0, 0.0, -1.0]
-max = [-0.2, 2.0, 1.0]
-[time]
-dt = 0.01
-steps = {steps}
-{extra}
-"#
-    )
-}
-
 /// Every file under `dir` (relative path -> bytes).
 fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     fn walk(root: &Path, d: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
@@ -77,7 +54,7 @@ fn simulate(scene: &Path, out: &Path) -> std::process::Output {
 #[test]
 fn a_failing_rerun_leaves_the_earlier_output_byte_identical() {
     let dir = tmp("outputs", "rerun");
-    let good = write(&dir, "good.toml", &scene(3, ""));
+    let good = write(&dir, "good.toml", &tiny_bar(3, ""));
     let out = dir.join("out");
     let j = json(&simulate(&good, &out));
     // the JSON names the final folder, not the temporary one
@@ -89,9 +66,12 @@ fn a_failing_rerun_leaves_the_earlier_output_byte_identical() {
     let bad = write(
         &dir,
         "bad.toml",
-        &scene(3, "").replace(
-            "shape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }",
-            "sdf = \"missing.sdf\"",
+        &edited(
+            &tiny_bar(3, ""),
+            &[(
+                "shape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }",
+                "sdf = \"missing.sdf\"",
+            )],
         ),
     );
     let o = simulate(&bad, &out);
@@ -107,39 +87,31 @@ fn a_failing_rerun_leaves_the_earlier_output_byte_identical() {
 
     // fit: a rerun whose observations are out of reach fails; fit.json, fit.log and plots stay
     let obs = dir.join("obs.csv");
-    json(&run(&[
-        "observe",
-        good.to_str().unwrap(),
-        "--out",
-        obs.to_str().unwrap(),
-        "--radius",
-        "2",
-        "--json",
-    ]));
+    observe_json(&good, &obs, &["--radius", "2"]);
     let report = dir.join("report");
-    let fit = |obs: &Path| {
-        run(&[
+    let fit_young = |obs: &Path| {
+        run_on(
             "fit",
-            good.to_str().unwrap(),
-            "--observations",
-            obs.to_str().unwrap(),
-            "--out",
-            report.to_str().unwrap(),
-            "--params",
-            "young",
-            "--iterations",
-            "1",
-            "--no-refine-check",
-            "--json",
-        ])
+            &good,
+            obs,
+            &report,
+            &[
+                "--params",
+                "young",
+                "--iterations",
+                "1",
+                "--no-refine-check",
+                "--json",
+            ],
+        )
     };
-    json(&fit(&obs));
+    json(&fit_young(&obs));
     let before = snapshot(&report);
     for f in ["fit.json", "fit.log", "cost.png"] {
         assert!(before.contains_key(Path::new(f)), "{f}");
     }
     let far = write(&dir, "far.csv", "frame,x,y,z\n1,50,50,50\n2,51,50,50\n");
-    one_line_error(&fit(&far), "within reach");
+    one_line_error(&fit_young(&far), "within reach");
     assert_eq!(snapshot(&report), before, "the earlier report is untouched");
 }
 
@@ -147,13 +119,13 @@ fn a_failing_rerun_leaves_the_earlier_output_byte_identical() {
 fn a_simulate_rerun_with_another_scene_leaves_no_frame_of_the_first() {
     let dir = tmp("outputs", "frames");
     let out = dir.join("out");
-    let long = write(&dir, "long.toml", &scene(6, ""));
+    let long = write(&dir, "long.toml", &tiny_bar(6, ""));
     json(&simulate(&long, &out));
     assert!(out.join("frames/0006.ply").exists());
     let short = write(
         &dir,
         "short.toml",
-        &scene(2, "").replace("young = 2000.0", "young = 5000.0"),
+        &edited(&tiny_bar(2, ""), &[("young = 2000.0", "young = 5000.0")]),
     );
     let j = json(&simulate(&short, &out));
     assert_eq!(j["steps"], 2);
@@ -167,7 +139,7 @@ fn a_simulate_rerun_with_another_scene_leaves_no_frame_of_the_first() {
 #[test]
 fn a_folder_of_other_files_is_not_replaced() {
     let dir = tmp("outputs", "foreign");
-    let s = write(&dir, "s.toml", &scene(2, ""));
+    let s = write(&dir, "s.toml", &tiny_bar(2, ""));
     // the folder of the scene itself: refused, nothing deleted
     one_line_error(&simulate(&s, &dir), "holds files that softbody did not write");
     assert!(s.exists());
@@ -179,7 +151,7 @@ fn a_folder_of_other_files_is_not_replaced() {
 #[allow(clippy::incompatible_msrv)] // File::try_lock: std since 1.89 (softbody::out_dir)
 fn a_second_run_into_a_locked_out_dir_fails_at_once() {
     let dir = tmp("outputs", "lock");
-    let s = write(&dir, "s.toml", &scene(2, ""));
+    let s = write(&dir, "s.toml", &tiny_bar(2, ""));
     let out = dir.join("out");
     json(&simulate(&s, &out));
     let before = snapshot(&out);
@@ -205,7 +177,7 @@ fn a_second_run_into_a_locked_out_dir_fails_at_once() {
     drop(lock);
 
     // a real run holding it: a long simulation into the same folder
-    let long = write(&dir, "long.toml", &scene(100_000, ""));
+    let long = write(&dir, "long.toml", &tiny_bar(100_000, ""));
     let mut child = softbody()
         .args([
             "simulate",
@@ -245,44 +217,26 @@ fn a_second_run_into_a_locked_out_dir_fails_at_once() {
 #[test]
 fn observe_failing_at_the_camera_file_leaves_no_csv() {
     let dir = tmp("outputs", "observe");
-    let s = write(&dir, "s.toml", &scene(2, ""));
+    let s = write(&dir, "s.toml", &tiny_bar(2, ""));
     let obs = dir.join("obs.csv");
+    let observe = |flags: &[&str]| {
+        let (s, obs) = (s.to_str().unwrap(), obs.to_str().unwrap());
+        run(&[&["observe", s, "--out", obs, "--radius", "2"], flags].concat())
+    };
     // a folder where the camera file goes
     std::fs::create_dir(dir.join("obs.cameras.json")).unwrap();
-    let o = run(&[
-        "observe",
-        s.to_str().unwrap(),
-        "--out",
-        obs.to_str().unwrap(),
-        "--radius",
-        "2",
-    ]);
+    let o = observe(&[]);
     one_line_error(&o, "obs.cameras.json");
     assert!(!obs.exists(), "no CSV without its camera file");
     // an earlier CSV stays as it was
     std::fs::write(&obs, "frame,x,y,z\n1,0,1,0\n").unwrap();
-    let o = run(&[
-        "observe",
-        s.to_str().unwrap(),
-        "--out",
-        obs.to_str().unwrap(),
-        "--radius",
-        "2",
-    ]);
+    let o = observe(&[]);
     one_line_error(&o, "obs.cameras.json");
     assert_eq!(std::fs::read_to_string(&obs).unwrap(), "frame,x,y,z\n1,0,1,0\n");
     assert!(leftovers(&dir, &["s.toml", "obs.csv", "obs.cameras.json"]).is_empty());
     // without the obstacle both files appear
     std::fs::remove_dir(dir.join("obs.cameras.json")).unwrap();
-    let j = json(&run(&[
-        "observe",
-        s.to_str().unwrap(),
-        "--out",
-        obs.to_str().unwrap(),
-        "--radius",
-        "2",
-        "--json",
-    ]));
+    let j = json(&observe(&["--json"]));
     assert!(j["points"].as_u64().unwrap() > 0);
     assert!(dir.join("obs.cameras.json").is_file());
     assert!(leftovers(&dir, &["s.toml", "obs.csv", "obs.cameras.json"]).is_empty());
@@ -291,40 +245,18 @@ fn observe_failing_at_the_camera_file_leaves_no_csv() {
 #[test]
 fn fit_resume_continues_the_log_of_a_killed_run() {
     let dir = tmp("outputs", "resume");
-    let truth = write(&dir, "truth.toml", &scene(4, ""));
-    let obs = dir.join("obs.csv");
-    json(&run(&[
-        "observe",
-        truth.to_str().unwrap(),
-        "--out",
-        obs.to_str().unwrap(),
-        "--radius",
-        "2",
-        "--json",
-    ]));
+    let (obs, _) = observed(&dir, &tiny_bar(4, ""), &["--radius", "2"]);
     let start = write(
         &dir,
         "start.toml",
-        &scene(4, "").replace("young = 2000.0", "young = 2600.0"),
+        &edited(&tiny_bar(4, ""), &[("young = 2000.0", "young = 2600.0")]),
     );
     let report = dir.join("report");
-    let fit = |extra: &[&str]| {
-        let mut a = vec![
-            "fit",
-            start.to_str().unwrap(),
-            "--observations",
-            obs.to_str().unwrap(),
-            "--out",
-            report.to_str().unwrap(),
-            "--params",
-            "young",
-            "--no-refine-check",
-            "--json",
-        ];
-        a.extend_from_slice(extra);
-        run(&a)
+    let fit_young = |extra: &[&str]| {
+        let flags = [&["--params", "young", "--no-refine-check", "--json"], extra].concat();
+        run_on("fit", &start, &obs, &report, &flags)
     };
-    let j = json(&fit(&["--iterations", "3"]));
+    let j = json(&fit_young(&["--iterations", "3"]));
     let log = std::fs::read_to_string(report.join("fit.log")).unwrap();
     assert_eq!(log.lines().count(), j["history"].as_array().unwrap().len());
     // a run killed after two iterations: its log is in its temporary folder
@@ -332,7 +264,7 @@ fn fit_resume_continues_the_log_of_a_killed_run() {
     std::fs::create_dir(&killed).unwrap();
     let kept: Vec<&str> = log.lines().take(2).collect();
     std::fs::write(killed.join("fit.log"), kept.join("\n") + "\n").unwrap();
-    let j = json(&fit(&["--resume", "--iterations", "2"]));
+    let j = json(&fit_young(&["--resume", "--iterations", "2"]));
     let h = j["history"].as_array().unwrap();
     assert_eq!(h[1]["iteration"], 1);
     assert_eq!(h[2]["iteration"], 2, "resumed from the killed run's log");

@@ -3,69 +3,34 @@
 //! plausible size, `--json` into a closed pipe or a full disk, an `.sdf` that is an endless
 //! stream) now give a result or a one-line error with exit code 1, never a panic.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 mod common;
 use common::*;
-
-/// A tiny cantilever (Young's modulus `young`), 4 steps; `extra` is appended.
-fn scene(young: f64, extra: &str) -> String {
-    format!(
-        r#"
-[body]
-shape = {{ kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }}
-resolution = 10
-[material]
-young = {young}
-poisson = 0.3
-[gravity]
-acceleration = [0.0, -10.0, 0.0]
-[[dirichlet]]
-min = [-1.0, 0.0, -1.0]
-max = [-0.2, 2.0, 1.0]
-[time]
-dt = 0.01
-steps = 4
-{extra}
-"#
-    )
-}
-
-/// Observations of the truth (E = 2000) written by `observe`.
-fn observe(dir: &Path) -> PathBuf {
-    let truth = write(dir, "truth.toml", &scene(2000.0, ""));
-    let obs = dir.join("obs.csv");
-    let j = json(&run(&[
-        "observe",
-        truth.to_str().unwrap(),
-        "--out",
-        obs.to_str().unwrap(),
-        "--json",
-    ]));
-    assert!(j["points"].as_u64().unwrap() > 100);
-    obs
-}
 
 #[test]
 fn fit_a_stiffness_field_from_the_cli() {
     let dir = tmp("robust", "field");
-    let obs = observe(&dir);
+    // observations of the truth (E = 2000)
+    let (obs, j) = observed(&dir, &tiny_bar(4, ""), &[]);
+    assert!(j["points"].as_u64().unwrap() > 100);
     let field = "[model]\neffects = [\"gravity\", \"corotation\", \"stiffness_field\"]\n\
                  stiffness_field = { cells = [1, 1, 1] }\n";
-    let start = write(&dir, "start.toml", &scene(3000.0, field));
-    let o = run(&[
+    let start = edited(&tiny_bar(4, field), &[("young = 2000.0", "young = 3000.0")]);
+    let start = write(&dir, "start.toml", &start);
+    let o = run_on(
         "fit",
-        start.to_str().unwrap(),
-        "--observations",
-        obs.to_str().unwrap(),
-        "--params",
-        "stiffness_field",
-        "--iterations",
-        "3",
-        "--no-refine-check",
-        "--out",
-        dir.join("report").to_str().unwrap(),
-        "--json",
-    ]);
+        &start,
+        &obs,
+        &dir.join("report"),
+        &[
+            "--params",
+            "stiffness_field",
+            "--iterations",
+            "3",
+            "--no-refine-check",
+            "--json",
+        ],
+    );
     assert!(!String::from_utf8_lossy(&o.stderr).contains("panicked"));
     let j = json(&o);
     // 2 x 2 x 2 coefficients; the stiffer start is softened towards the truth
@@ -83,7 +48,7 @@ fn fit_a_stiffness_field_from_the_cli() {
 #[test]
 fn frame_ranges_are_checked_before_they_are_expanded() {
     let dir = tmp("robust", "frames");
-    let s = write(&dir, "s.toml", &scene(2000.0, ""));
+    let s = write(&dir, "s.toml", &tiny_bar(4, ""));
     let out = dir.join("o.csv");
     let (s, out) = (s.to_str().unwrap(), out.to_str().unwrap());
     for (frames, needle) in [
@@ -105,12 +70,9 @@ fn frame_ranges_are_checked_before_they_are_expanded() {
 #[test]
 fn implausible_sizes_are_refused_before_anything_is_reserved() {
     let dir = tmp("robust", "sizes");
-    let big = write(
-        &dir,
-        "big.toml",
-        &scene(2000.0, "").replace("steps = 4", "steps = 100000000000"),
-    );
-    let small = write(&dir, "s.toml", &scene(2000.0, ""));
+    let big = edited(&tiny_bar(4, ""), &[("steps = 4", "steps = 100000000000")]);
+    let big = write(&dir, "big.toml", &big);
+    let small = write(&dir, "s.toml", &tiny_bar(4, ""));
     let obs = write(&dir, "obs.csv", "frame,x,y,z\n1,0,1,0\n");
     let (big, small, obs) = (
         big.to_str().unwrap(),
@@ -204,7 +166,7 @@ fn implausible_sizes_are_refused_before_anything_is_reserved() {
 fn json_into_a_closed_pipe_ends_quietly_and_into_a_full_disk_is_an_error() {
     use std::process::Stdio;
     let dir = tmp("robust", "stdout");
-    let s = write(&dir, "s.toml", &scene(2000.0, ""));
+    let s = write(&dir, "s.toml", &tiny_bar(4, ""));
     let s = s.to_str().unwrap();
     let commands: [Vec<String>; 2] = [
         vec![
@@ -278,7 +240,7 @@ fn endless_inputs_are_refused_not_read() {
         &run(&["simulate", zero_toml.to_str().unwrap(), "--out", out]),
         "zero.toml: binary data",
     );
-    let s = write(&dir, "s.toml", &scene(2000.0, ""));
+    let s = write(&dir, "s.toml", &tiny_bar(4, ""));
     one_line_error(
         &run(&[
             "fit",

@@ -1,41 +1,24 @@
 //! `softbody simulate` end to end: a small scene runs and writes its files and JSON; bad input
 //! gives one line on stderr, a non-zero exit code and no panic.
 
+use std::path::{Path, PathBuf};
+use std::process::Output;
 mod common;
 use common::*;
 
-const SMALL: &str = r#"
-[body]
-shape = { kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }
-resolution = 10
-[material]
-young = 2000.0
-poisson = 0.3
-[gravity]
-acceleration = [0.0, -10.0, 0.0]
-[[dirichlet]]
-min = [-1.0, 0.0, -1.0]
-max = [-0.2, 2.0, 1.0]
-[time]
-dt = 0.01
-steps = 4
-"#;
+/// Writes `text` to `dir/name` and runs `softbody simulate` on it into `dir/out` with `flags`:
+/// its output and that folder.
+fn simulate(dir: &Path, name: &str, text: &str, flags: &[&str]) -> (Output, PathBuf) {
+    let scene = write(dir, name, text);
+    let out = dir.join("out");
+    let (s, o) = (scene.to_str().unwrap(), out.to_str().unwrap());
+    (run(&[&["simulate", s, "--out", o], flags].concat()), out)
+}
 
 #[test]
 fn simulate_writes_frames_picture_and_json() {
     let dir = tmp("cli", "ok");
-    let scene = write(&dir, "small.toml", SMALL);
-    let out = dir.join("out");
-    let o = softbody()
-        .args([
-            "simulate",
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--json",
-        ])
-        .output()
-        .unwrap();
+    let (o, out) = simulate(&dir, "small.toml", &tiny_bar(4, ""), &["--json"]);
     assert!(
         o.status.success(),
         "stderr: {}",
@@ -60,47 +43,51 @@ fn simulate_writes_frames_picture_and_json() {
 
 fn expect_error(scene_text: &str, needle: &str) {
     let dir = tmp("cli", &needle.replace(|c: char| !c.is_alphanumeric(), "_"));
-    let scene = write(&dir, "bad.toml", scene_text);
-    let o = softbody()
-        .args([
-            "simulate",
-            scene.to_str().unwrap(),
-            "--out",
-            dir.join("out").to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let (o, _) = simulate(&dir, "bad.toml", scene_text, &[]);
     one_line_error(&o, needle);
 }
 
 #[test]
 fn bad_parameters_are_one_line_errors() {
-    expect_error(&SMALL.replace("young = 2000.0", "young = -5.0"), "material.young");
     expect_error(
-        &SMALL.replace("poisson = 0.3", "poisson = 0.5"),
+        &edited(&tiny_bar(4, ""), &[("young = 2000.0", "young = -5.0")]),
+        "material.young",
+    );
+    expect_error(
+        &edited(&tiny_bar(4, ""), &[("poisson = 0.3", "poisson = 0.5")]),
         "material.poisson",
     );
-    expect_error(&SMALL.replace("dt = 0.01", "dt = 0.0"), "time.dt");
-    expect_error(&(SMALL.to_string() + "theta = 1.0\n"), "time.theta");
+    expect_error(&edited(&tiny_bar(4, ""), &[("dt = 0.01", "dt = 0.0")]), "time.dt");
+    expect_error(&tiny_bar(4, "theta = 1.0\n"), "time.theta");
     expect_error(
-        &SMALL
-            .replace("min = [-1.0, 0.0, -1.0]", "min = [5.0, 5.0, 5.0]")
-            .replace("max = [-0.2, 2.0, 1.0]", "max = [6.0, 6.0, 6.0]"),
+        &edited(
+            &tiny_bar(4, ""),
+            &[
+                ("min = [-1.0, 0.0, -1.0]", "min = [5.0, 5.0, 5.0]"),
+                ("max = [-0.2, 2.0, 1.0]", "max = [6.0, 6.0, 6.0]"),
+            ],
+        ),
         "dirichlet[0]",
     );
     expect_error(
-        &SMALL.replace("young = 2000.0", "young = 2000.0\nyoungs = 3.0"),
+        &edited(
+            &tiny_bar(4, ""),
+            &[("young = 2000.0", "young = 2000.0\nyoungs = 3.0")],
+        ),
         "unknown field",
     );
     expect_error(
-        &SMALL.replace(
-            "[gravity]",
-            "[model]\neffects = [\"gravity\", \"magic\"]\n[gravity]",
+        &edited(
+            &tiny_bar(4, ""),
+            &[(
+                "[gravity]",
+                "[model]\neffects = [\"gravity\", \"magic\"]\n[gravity]",
+            )],
         ),
         "magic",
     );
     expect_error(
-        &(SMALL.to_string() + "[numerics]\npreconditioner = \"multigrid\"\n"),
+        &tiny_bar(4, "[numerics]\npreconditioner = \"multigrid\"\n"),
         "unknown variant `multigrid`, expected one of `block_jacobi`, `block_ic0`, `rest_cholesky`",
     );
 }
@@ -111,19 +98,8 @@ fn bad_parameters_are_one_line_errors() {
 fn simulate_with_other_preconditioners() {
     for (name, factorizations) in [("block_ic0", 4), ("rest_cholesky", 1)] {
         let dir = tmp("cli", name);
-        let text = format!("{SMALL}[numerics]\npreconditioner = \"{name}\"\n");
-        let scene = write(&dir, "small.toml", &text);
-        let out = dir.join("out");
-        let o = softbody()
-            .args([
-                "simulate",
-                scene.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--json",
-            ])
-            .output()
-            .unwrap();
+        let text = tiny_bar(4, &format!("[numerics]\npreconditioner = \"{name}\"\n"));
+        let (o, _) = simulate(&dir, "small.toml", &text, &["--json"]);
         assert!(
             o.status.success(),
             "{name}: {}",
@@ -148,7 +124,8 @@ fn bad_bodies_are_one_line_errors() {
     bytes.extend_from_slice(&[0u8; 10]);
     std::fs::write(&sdf, &bytes).unwrap();
     let body = format!("[body]\nsdf = \"{}\"\n", sdf.display());
-    let rest = SMALL.split_once("[material]").unwrap().1;
+    let bar = tiny_bar(4, "");
+    let rest = bar.split_once("[material]").unwrap().1;
     expect_error(&format!("{body}[material]{rest}"), "trunc.sdf");
     // NaN values
     let sdf = dir.join("nan.sdf");
@@ -169,13 +146,16 @@ fn bad_bodies_are_one_line_errors() {
         "x.sdf",
     );
     // empty body: a sphere of radius 0.001 at resolution 10 has no inside node
-    let empty = SMALL.replace(
-        "shape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }",
-        "shape = { kind = \"sphere\", center = [0.05, 1.05, 0.05], radius = 0.001 }",
+    let empty = edited(
+        &bar,
+        &[(
+            "shape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }",
+            "shape = { kind = \"sphere\", center = [0.05, 1.05, 0.05], radius = 0.001 }",
+        )],
     );
     expect_error(&empty, "empty body");
     // a body too large for memory: refused before allocating
-    let huge = SMALL.replace("resolution = 10", "resolution = 100000");
+    let huge = edited(&bar, &[("resolution = 10", "resolution = 100000")]);
     expect_error(&huge, "resolution");
 }
 
@@ -184,16 +164,8 @@ fn bad_bodies_are_one_line_errors() {
 #[test]
 fn simulate_refine_check_reports_the_discretisation_error() {
     let dir = tmp("cli", "refine");
-    let scene = write(&dir, "small.toml", SMALL);
-    let out = dir.join("out");
-    let o = run(&[
-        "simulate",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--refine-check",
-        "--json",
-    ]);
+    let flags = ["--refine-check", "--json"];
+    let (o, _) = simulate(&dir, "small.toml", &tiny_bar(4, ""), &flags);
     ok(&o);
     let v = json(&o);
     let r = &v["refine_check"];

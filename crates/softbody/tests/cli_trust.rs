@@ -8,31 +8,15 @@ use std::path::Path;
 mod common;
 use common::*;
 
-/// A tiny cantilever, 4 steps; `edit` replaces text in it, `extra` is appended.
+/// The tiny bar of 4 steps ([`tiny_bar`]); `edit` replaces text in it (none when empty),
+/// `extra` is appended.
 fn scene(edit: (&str, &str), extra: &str) -> String {
-    let text = r#"
-[body]
-shape = { kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }
-resolution = 10
-[material]
-young = 2000.0
-poisson = 0.3
-[gravity]
-acceleration = [0.0, -10.0, 0.0]
-[[dirichlet]]
-min = [-1.0, 0.0, -1.0]
-max = [-0.2, 2.0, 1.0]
-[time]
-dt = 0.01
-steps = 4
-"#;
-    assert!(edit.0.is_empty() || text.contains(edit.0));
-    let text = if edit.0.is_empty() {
-        text.to_string()
+    let text = tiny_bar(4, extra);
+    if edit.0.is_empty() {
+        text
     } else {
-        text.replace(edit.0, edit.1)
-    };
-    format!("{text}{extra}")
+        edited(&text, &[edit])
+    }
 }
 
 /// Runs `fit`, `gradcheck` and `diagnose` on `scene` and `obs` (with `--cameras` when given) and

@@ -14,7 +14,7 @@
 
 mod common;
 
-use common::{json, run, tmp};
+use common::{json, tmp};
 use serde_json::Value;
 use std::path::PathBuf;
 
@@ -54,18 +54,8 @@ fn scene(name: &str, tag: &str, start: Option<(f64, f64)>) -> PathBuf {
 fn fit(name: &str, tag: &str, scene: &std::path::Path, extra: &[&str]) -> Value {
     let out = tmp("independent", &format!("{tag}-report"));
     let obs = case(name).join("observations.csv");
-    let mut args = vec![
-        "fit",
-        scene.to_str().unwrap(),
-        "--observations",
-        obs.to_str().unwrap(),
-        "--no-refine-check",
-        "--json",
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend_from_slice(extra);
-    json(&run(&args))
+    let flags = [&["--no-refine-check", "--json"], extra].concat();
+    json(&common::run_on("fit", scene, &obs, &out, &flags))
 }
 
 #[test]

@@ -1,11 +1,48 @@
-//! Helpers shared by the CLI tests: run the `softbody` binary, scratch folders, and the checks
-//! of its two kinds of answer (one JSON object, or a one-line error with exit code 1).
+//! Helpers shared by the CLI tests: run the `softbody` binary, scratch folders, the tiny
+//! clamped bar most of them simulate, observe and fit, and the checks of its two kinds of answer
+//! (one JSON object, or a one-line error with exit code 1).
 
 #![allow(dead_code)] // each test file uses its own subset
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+
+/// The tiny cantilever of the CLI tests: a 0.6 x 0.2 x 0.3 box at resolution 10 (E = 2000,
+/// nu = 0.3) under gravity, clamped at x <= -0.2, `steps` steps of 0.01 s; `extra` is appended
+/// after `[time]` (keys of `[time]`, or more tables). A variant of a key given here is made
+/// with [`edited`].
+pub fn tiny_bar(steps: usize, extra: &str) -> String {
+    format!(
+        r#"
+[body]
+shape = {{ kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }}
+resolution = 10
+[material]
+young = 2000.0
+poisson = 0.3
+[gravity]
+acceleration = [0.0, -10.0, 0.0]
+[[dirichlet]]
+min = [-1.0, 0.0, -1.0]
+max = [-0.2, 2.0, 1.0]
+[time]
+dt = 0.01
+steps = {steps}
+{extra}
+"#
+    )
+}
+
+/// `text` with each `(from, to)` replaced in turn; each `from` must occur.
+pub fn edited(text: &str, edits: &[(&str, &str)]) -> String {
+    let mut text = text.to_string();
+    for (from, to) in edits {
+        assert!(text.contains(from), "`{from}` not in the scene:\n{text}");
+        text = text.replace(from, to);
+    }
+    text
+}
 
 /// The `softbody` binary of this build.
 pub fn softbody() -> Command {
@@ -30,6 +67,36 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 /// Runs `softbody args...`.
 pub fn run(args: &[&str]) -> Output {
     softbody().args(args).output().unwrap()
+}
+
+/// Runs `softbody observe SCENE --out OBS FLAGS --json`; asserts success and returns its JSON.
+pub fn observe_json(scene: &Path, obs: &Path, flags: &[&str]) -> Value {
+    let mut args = vec!["observe", scene.to_str().unwrap(), "--out", obs.to_str().unwrap()];
+    args.extend_from_slice(flags);
+    args.push("--json");
+    json(&run(&args))
+}
+
+/// Writes `truth` to `dir/truth.toml` and observes it into `dir/obs.csv` with `flags`
+/// ([`observe_json`]): the observations and the JSON of `observe`.
+pub fn observed(dir: &Path, truth: &str, flags: &[&str]) -> (PathBuf, Value) {
+    let obs = dir.join("obs.csv");
+    let j = observe_json(&write(dir, "truth.toml", truth), &obs, flags);
+    (obs, j)
+}
+
+/// Runs `softbody COMMAND SCENE --observations OBS --out OUT FLAGS` (`fit`, `diagnose`).
+pub fn run_on(command: &str, scene: &Path, obs: &Path, out: &Path, flags: &[&str]) -> Output {
+    let mut args = vec![
+        command,
+        scene.to_str().unwrap(),
+        "--observations",
+        obs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(flags);
+    run(&args)
 }
 
 /// Asserts success.
