@@ -68,7 +68,12 @@ struct VertexDofs {
 impl VertexDofs {
     /// `sum w_i u_i` of the dof vector `u`.
     fn apply(&self, u: &[Vec3<f64>]) -> Vec3<f64> {
-        let mut s = Vec3::default();
+        self.moved(Vec3::default(), u)
+    }
+
+    /// `x + sum w_i u_i`, summed in that order.
+    fn moved(&self, x: Vec3<f64>, u: &[Vec3<f64>]) -> Vec3<f64> {
+        let mut s = x;
         for (&d, &w) in self.dofs.iter().zip(&self.weights) {
             if d != INACTIVE {
                 s = s + node_u(u, d) * w;
@@ -254,7 +259,7 @@ impl SurfaceCost {
             .vertices
             .iter()
             .zip(&self.vertex_dofs)
-            .map(|(x, d)| Vec3::from_array(*x) + d.apply(us))
+            .map(|(x, d)| d.moved(Vec3::from_array(*x), us))
             .collect()
     }
 

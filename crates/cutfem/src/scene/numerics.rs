@@ -89,7 +89,7 @@ fn surface_subdivision() -> usize {
     DEFAULT_SURFACE_SUBDIVISION
 }
 /// Default `[numerics].surface_subdivision`.
-pub const DEFAULT_SURFACE_SUBDIVISION: usize = 2;
+pub const DEFAULT_SURFACE_SUBDIVISION: usize = 1;
 impl Default for NumericsSection {
     fn default() -> Self {
         Self {
