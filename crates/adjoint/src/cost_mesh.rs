@@ -1,8 +1,8 @@
 //! The distance of observed points to the simulated surface mesh: the surface `softbody
 //! simulate` writes and `softbody observe` renders ([`cutfem::fem::Grid::surface`]: marching
-//! cubes on the body's SDF, by default sampled finer than the simulation grid, each vertex
-//! moved by the trilinear displacement of its cell; on the grid itself, the interpolation
-//! along the vertex's grid edge of sec. 4.5.1).
+//! cubes on the body's SDF sampled `[numerics] surface_subdivision` times finer than the
+//! simulation grid, each vertex moved by the trilinear displacement of its cell; with 1, the
+//! default, on the grid itself, each vertex moved along its grid edge, sec. 4.5.1).
 //!
 //! For a point `p` and the deformed mesh, `q` is the closest point on the closest triangle
 //! (barycentric `b_i` on vertices `X_i`), and the residual is the signed distance
