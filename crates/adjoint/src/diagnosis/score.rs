@@ -283,10 +283,12 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
                     .collect(),
             );
         }
+        let mut scene_start = None;
         if base.x_start.len() == base.x.len() {
             let mut xs = base.x_start.clone();
             xs.extend_from_slice(&x0[base.x.len()..]);
-            starts.push(xs);
+            starts.push(xs.clone());
+            scene_start = Some(xs);
         }
         let mut start = x0.clone();
         let mut best = f64::INFINITY;
@@ -298,7 +300,20 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
                 }
             }
         }
-        let (x, ev) = fit_problem(&mut problem, &start, iterations)?;
+        scan_magnitudes(&mut problem, base.x.len(), &mut start, best);
+        let mut fit = fit_problem(&mut problem, &start, iterations);
+        // the wrong model's base fit may have wandered off (a body made soft to stop where a
+        // hidden ground stops it), and a start's cost before the effect's values are fitted
+        // says little about where a refit ends: refit from the scene's own values too and keep
+        // the better
+        if let Some(xs) = scene_start.filter(|xs| *xs != start) {
+            if let Ok(other) = fit_problem(&mut problem, &xs, iterations) {
+                if fit.as_ref().map_or(true, |f| other.1.cost < f.1.cost) {
+                    fit = Ok(other);
+                }
+            }
+        }
+        let (x, ev) = fit?;
         Ok((x, ev, problem))
     };
     match run() {
@@ -316,6 +331,37 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
             c.model = Some(model);
         }
         Err(e) => c.error = Some(e),
+    }
+}
+
+/// Decades tried per coordinate by [`scan_magnitudes`].
+const MAX_DECADES: usize = 8;
+
+/// Raises each of the effect's log coordinates of `start` (those from `first` on) by decades
+/// while the cost (`cost` at `start`) falls, at most [`MAX_DECADES`] each, within the box of
+/// [`ParamSet::bounds`]. An effect probed at a tiny neutral value (damping at 1e-4) is many
+/// e-folds from its value, and a log coordinate that far off moves about one e-fold per
+/// Levenberg-Marquardt iteration: the torus' mass damping (true 8) got from 1e-4 to 0.08 in the
+/// 8 iterations of a short refit, which then lost to a wrong effect. One forward run per decade
+/// tried.
+fn scan_magnitudes(problem: &mut Problem, first: usize, start: &mut [f64], mut cost: f64) {
+    let logs = problem.params.log_coordinates();
+    let bounds = problem.params.bounds(start);
+    for k in (first..start.len()).filter(|&k| logs[k]) {
+        for _ in 0..MAX_DECADES {
+            let mut x = start.to_vec();
+            x[k] += 10f64.ln();
+            if x[k] > bounds[k].1 {
+                break;
+            }
+            match problem.evaluate(&x) {
+                Ok(e) if e.cost < cost => {
+                    cost = e.cost;
+                    start[k] = x[k];
+                }
+                _ => break,
+            }
+        }
     }
 }
 
