@@ -209,7 +209,8 @@ impl CameraFile {
             .filter(|&c| c as usize >= self.cameras.len())
             .min();
         let Some(id) = missing else { return Ok(()) };
-        let line = camera_line(csv, id).map_or(String::new(), |l| format!(":{l}"));
+        let line = crate::fit::first_line_with(csv, "camera", u64::from(id))
+            .map_or(String::new(), |l| format!(":{l}"));
         Err(format!(
             "{}{line}: camera {id}: no camera with `id` {id} in {} (it has {} cameras, ids 0..{}); \
              give the camera file that belongs to these observations (--cameras)",
@@ -219,20 +220,6 @@ impl CameraFile {
             self.cameras.len()
         ))
     }
-}
-
-/// The first line (1-based) of an observation CSV whose camera is `id`, if any.
-fn camera_line(path: &Path, id: u32) -> Option<usize> {
-    let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES).ok()?;
-    let mut lines = text.lines().enumerate();
-    let header = lines.next()?.1;
-    let col = header
-        .trim_start_matches('\u{feff}')
-        .split(',')
-        .position(|c| c.trim().eq_ignore_ascii_case("camera"))?;
-    lines
-        .find(|(_, l)| l.split(',').nth(col).and_then(|f| f.trim().parse::<u32>().ok()) == Some(id))
-        .map(|(i, _)| i + 1)
 }
 
 #[cfg(test)]

@@ -173,15 +173,21 @@ pub type EvaluationLog = std::rc::Rc<std::cell::RefCell<Vec<(Vec<f64>, Evaluatio
 
 /// The first line (1-based) of an observation CSV whose frame is `frame`, if any.
 pub fn frame_line(path: &std::path::Path, frame: usize) -> Option<usize> {
+    first_line_with(path, "frame", frame as u64)
+}
+
+/// The first line (1-based) of an observation CSV whose integer column `column` (named in the
+/// header, case-insensitive) holds `value`, if any: where an error about that value points.
+pub fn first_line_with(path: &std::path::Path, column: &str, value: u64) -> Option<usize> {
     let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES).ok()?;
     let mut lines = text.lines().enumerate();
     let header = lines.next()?.1;
     let col = header
         .trim_start_matches('\u{feff}')
         .split(',')
-        .position(|c| c.trim().eq_ignore_ascii_case("frame"))?;
+        .position(|c| c.trim().eq_ignore_ascii_case(column))?;
     lines
-        .find(|(_, l)| l.split(',').nth(col).and_then(|f| f.trim().parse::<usize>().ok()) == Some(frame))
+        .find(|(_, l)| l.split(',').nth(col).and_then(|f| f.trim().parse::<u64>().ok()) == Some(value))
         .map(|(i, _)| i + 1)
 }
 
