@@ -107,6 +107,9 @@ CASES = {
         # reference contact: frictionless penalty pressure p = k * penetration, k below
         ground=dict(normal=[0.0, 1.0, 0.0], height=0.0, penalty=4.0e6,
                     scene_stiffness=1.0e4, scene_softness=1000.0, cap=0.04),
+        # our model integrates each frame in 2 steps: at one step per frame the rebounds
+        # drift (rms at the truth 1.19x the noise floor, 1.015x with 2)
+        scene_substeps=2,
         dt=0.01, steps=60, obs_every=1, points=200,
         sigma=0.01, seed=20261203,
         # isoparametric P2 tets: ball refined 3 times, then longest-edge bisection near
@@ -863,7 +866,11 @@ def scene_toml(name, case):
                   "[ground]", f"normal = {fmt(g['normal'])}", f"height = {g['height']!r}",
                   f"stiffness = {g['scene_stiffness']!r}", f"softness = {g['scene_softness']!r}", ""]
         effects.append("ground")
-    lines += ["[time]", f"dt = {case['dt']!r}", f"steps = {case['steps']}", "theta = 0.5", "",
+    lines += ["[time]", f"dt = {case['dt']!r}", f"steps = {case['steps']}", "theta = 0.5"]
+    if case.get("scene_substeps", 1) > 1:
+        lines += ["# our integrator steps per frame (the contact is resolved in time)",
+                  f"substeps = {case['scene_substeps']}"]
+    lines += ["",
               "[model]", "effects = [" + ", ".join(f'"{e}"' for e in effects) + "]", ""]
     return "\n".join(lines)
 

@@ -89,6 +89,12 @@ pub fn check_memory(steps: usize, dofs: usize) -> Result<(), String> {
     }
 }
 
+/// The observed frame at integrator step `t` (`substeps` steps per frame), if `frames` (sorted)
+/// holds it.
+pub(crate) fn observed_frame(frames: &[usize], t: usize, substeps: usize) -> Option<usize> {
+    (t % substeps == 0 && frames.binary_search(&(t / substeps)).is_ok()).then_some(t / substeps)
+}
+
 /// A reconstruction problem (module docs).
 #[derive(Debug)]
 pub struct Problem {
@@ -100,7 +106,7 @@ pub struct Problem {
     pub params: ParamSet,
     /// the cost
     pub cost: Box<dyn Cost>,
-    /// number of simulated steps
+    /// number of simulated frames (each `model.substeps` integrator steps)
     pub steps: usize,
     /// a displacement larger than this counts as divergence
     pub divergence_limit: f64,
@@ -146,7 +152,7 @@ impl Problem {
                 )));
             }
         }
-        check_memory(steps, sim.grid.dof_nodes.len()).map_err(ProblemError::Invalid)?;
+        check_memory(steps * base.substeps, sim.grid.dof_nodes.len()).map_err(ProblemError::Invalid)?;
         let size = {
             let s = &sim.grid.sdf;
             let d = s.dims;
@@ -200,11 +206,12 @@ impl Problem {
             v: vec![Packed::pack(&self.sim.v)],
         });
         let mut cost_s = 0.0;
-        for t in 0..=self.steps {
+        let substeps = self.base.substeps;
+        for t in 0..=self.steps * substeps {
             if t > 0 {
                 let info = self
                     .sim
-                    .step()
+                    .substep()
                     .map_err(|e| ProblemError::Diverged(format!("step {t}: {e}")))?;
                 ev.forward_iterations += info.iterations;
                 ev.fallbacks += usize::from(info.fallback);
@@ -221,12 +228,12 @@ impl Problem {
                     tr.v.push(Packed::pack(&self.sim.v));
                 }
             }
-            if frames.binary_search(&t).is_ok() {
+            if let Some(f) = observed_frame(&frames, t, substeps) {
                 let tc = Instant::now();
                 let fc = self
                     .cost
-                    .frame_cost(t, &self.sim.u, None)
-                    .map_err(|e| ProblemError::Diverged(format!("frame {t}: {e}")))?;
+                    .frame_cost(f, &self.sim.u, None)
+                    .map_err(|e| ProblemError::Diverged(format!("frame {f}: {e}")))?;
                 cost_s += tc.elapsed().as_secs_f64();
                 ev.cost += fc.cost;
                 ev.frames.push(fc);
@@ -259,25 +266,27 @@ impl Problem {
         let mut grad = PhysicalGradient::default();
         let frames = self.cost.frames();
         let mut cost_s = 0.0;
+        let substeps = self.base.substeps;
+        let last = self.steps * substeps;
         // dJ/du(t) of an observed frame, recomputed from the stored state
         let mut cost_grad =
             |cost: &dyn Cost, t: usize, u: &Matrix<Vec3<f64>>| -> Result<Matrix<Vec3<f64>>, ProblemError> {
                 let mut g = Matrix::zeros(n, 1, 1);
-                if frames.binary_search(&t).is_ok() {
+                if let Some(f) = observed_frame(&frames, t, substeps) {
                     let tc = Instant::now();
-                    cost.frame_cost(t, u, Some(&mut g))
-                        .map_err(|e| ProblemError::Diverged(format!("frame {t}: {e}")))?;
+                    cost.frame_cost(f, u, Some(&mut g))
+                        .map_err(|e| ProblemError::Diverged(format!("frame {f}: {e}")))?;
                     cost_s += tc.elapsed().as_secs_f64();
                 }
                 Ok(g)
             };
-        let mut ub = cost_grad(self.cost.as_ref(), self.steps, &traj.u[self.steps].unpack())?;
+        let mut ub = cost_grad(self.cost.as_ref(), last, &traj.u[last].unpack())?;
         let mut vb: Matrix<Vec3<f64>> = Matrix::zeros(n, 1, 1);
         let mut lam: Matrix<Vec3<f64>> = Matrix::zeros(n, 1, 1);
         // the previous adjoint, for a linear extrapolation as the CG warm start
         let mut lam_prev: Option<Matrix<Vec3<f64>>> = None;
         let c = 1.0 / (theta * dt);
-        for step in (0..self.steps).rev() {
+        for step in (0..last).rev() {
             let g = Matrix::eval(ub.ex() + vb.ex() * c);
             self.sim.u = traj.u[step].unpack();
             self.sim.v = traj.v[step].unpack();

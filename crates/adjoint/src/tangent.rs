@@ -86,10 +86,11 @@ impl Problem {
             add(&mut h, c);
         }
         let c = 1.0 / (theta * dt);
-        for t in 1..=self.steps {
+        let substeps = model.substeps;
+        for t in 1..=self.steps * substeps {
             let (u0, v0) = (self.sim.u.clone(), self.sim.v.clone());
             self.sim
-                .step()
+                .substep()
                 .map_err(|e| ProblemError::Diverged(format!("step {t}: {e}")))?;
             let (u1, v1) = (self.sim.u.clone(), self.sim.v.clone());
             let mut drs = Vec::with_capacity(n);
@@ -122,10 +123,10 @@ impl Problem {
             }
             self.sim.u = u1;
             self.sim.v = v1;
-            if frames.binary_search(&t).is_ok() {
+            if let Some(f) = crate::problem::observed_frame(&frames, t, substeps) {
                 let c = self
                     .cost
-                    .frame_gauss_newton(t, &self.sim.u, &su)
+                    .frame_gauss_newton(f, &self.sim.u, &su)
                     .map_err(ProblemError::Diverged)?;
                 add(&mut h, c);
             }

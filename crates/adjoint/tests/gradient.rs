@@ -495,3 +495,89 @@ fn gauss_newton_matrix_with_external_force_is_the_hessian_at_zero_residual() {
         }
     }
 }
+
+/// `substeps` integrator steps per frame: frame `f` of a model with `dt` and 2 substeps is
+/// step `2f` of the same model with `dt / 2` and one.
+fn substepped(mut m: Model) -> Model {
+    m.dt *= 0.5;
+    m.substeps = 2;
+    m
+}
+
+#[test]
+fn a_frame_of_substeps_is_that_many_steps() {
+    let steps = trajectory(Model { dt: 0.005, ..truth() });
+    let frames = {
+        let mut sim = Simulation::new(grid(), substepped(truth())).unwrap();
+        sim.solver.direct = true;
+        let mut out = vec![sim.u.clone()];
+        for _ in 0..STEPS / 2 {
+            sim.step().unwrap();
+            out.push(sim.u.clone());
+        }
+        out
+    };
+    for (f, u) in frames.iter().enumerate() {
+        let d = u
+            .as_slice()
+            .iter()
+            .zip(steps[2 * f].as_slice())
+            .map(|(a, b)| (*a - *b).norm())
+            .fold(0.0, f64::max);
+        assert!(d <= 1e-14, "frame {f}: {d}");
+    }
+}
+
+/// The adjoint gradient and the Gauss-Newton matrix run through every integrator step and
+/// read the cost at the frames only.
+#[test]
+fn substep_gradient_and_gauss_newton_match_finite_differences() {
+    let reference = {
+        let mut sim = Simulation::new(grid(), substepped(truth())).unwrap();
+        sim.solver.direct = true;
+        let mut out = vec![sim.u.clone()];
+        for _ in 0..STEPS / 2 {
+            sim.step().unwrap();
+            out.push(sim.u.clone());
+        }
+        out
+    };
+    let cost = DisplacementCost {
+        reference: vec![(2, 1.0, reference[2].clone()), (3, 0.5, reference[3].clone())],
+    };
+    let mut sim = Simulation::new(grid(), substepped(start())).unwrap();
+    sim.solver.direct = true;
+    let mut p = Problem::new(sim, all_params(), Box::new(cost), STEPS / 2).unwrap();
+    check_against_fd(&mut p, 1e-6);
+
+    // at the truth the Gauss-Newton matrix is the Hessian
+    let cost = DisplacementCost {
+        reference: vec![(2, 1.0, reference[2].clone()), (3, 0.5, reference[3].clone())],
+    };
+    let mut sim = Simulation::new(grid(), substepped(truth())).unwrap();
+    sim.solver.direct = true;
+    let params = ParamSet::parse(&["young,poisson,gravity"]).unwrap();
+    let mut p = Problem::new(sim, params, Box::new(cost), STEPS / 2).unwrap();
+    let x = p.x0();
+    // the cost reads frame f after f frames (2f steps), not after f steps
+    let at_truth = p.evaluate(&x).unwrap().cost;
+    assert!(at_truth <= 1e-24, "cost at the truth {at_truth}");
+    let n = x.len();
+    let h = p.gauss_newton_matrix(&x).unwrap();
+    let eps = 1e-4;
+    for b in 0..n {
+        let (mut xp, mut xm) = (x.clone(), x.clone());
+        xp[b] += eps;
+        xm[b] -= eps;
+        let (gp, gm) = (p.gradient(&xp).unwrap().1, p.gradient(&xm).unwrap().1);
+        for a in 0..n {
+            let fd = (gp[a] - gm[a]) / (2.0 * eps);
+            let scale = h[a * n + a].abs().max(h[b * n + b].abs());
+            assert!(
+                (h[a * n + b] - fd).abs() <= 1e-5 * scale,
+                "H[{a}][{b}]: tangent {} vs fd {fd}",
+                h[a * n + b]
+            );
+        }
+    }
+}

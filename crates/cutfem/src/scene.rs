@@ -163,15 +163,19 @@ pub struct InitialSection {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct TimeSection {
-    /// time step
+    /// time between frames (the time step when `substeps` is 1)
     #[serde(default = "dt")]
     pub dt: f64,
-    /// number of steps
+    /// number of frames simulated (steps of `dt`)
     #[serde(default = "steps")]
     pub steps: usize,
     /// Newmark theta
     #[serde(default = "theta")]
     pub theta: f64,
+    /// integrator steps per frame: the body is integrated with `dt / substeps`, frames stay
+    /// `dt` apart (observations keep their frame numbers)
+    #[serde(default = "substeps")]
+    pub substeps: usize,
 }
 fn dt() -> f64 {
     0.01
@@ -182,12 +186,16 @@ fn steps() -> usize {
 fn theta() -> f64 {
     0.6
 }
+fn substeps() -> usize {
+    1
+}
 impl Default for TimeSection {
     fn default() -> Self {
         Self {
             dt: dt(),
             steps: steps(),
             theta: theta(),
+            substeps: substeps(),
         }
     }
 }
@@ -350,7 +358,9 @@ impl Scene {
             poisson: self.material.poisson,
             density: self.material.density,
             corotation: self.effect_on("corotation"),
-            dt: self.time.dt,
+            // a zero substep count is refused by `Model::validate` (naming `time.substeps`)
+            dt: self.time.dt / self.time.substeps.max(1) as f64,
+            substeps: self.time.substeps,
             theta: self.time.theta,
             // both keys given is refused by `check`
             nitsche_quadrature: self.numerics.nitsche,

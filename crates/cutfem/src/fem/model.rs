@@ -151,11 +151,17 @@ pub struct Model {
     pub stiffness_scale: Option<std::sync::Arc<[f64]>>,
     /// a state-independent nodal force linear in its coefficients (module docs; `None`: none)
     pub external_force: Option<ExternalForce>,
-    /// time step
+    /// time step of the integrator (a scene's `time.dt / time.substeps`)
     pub dt: f64,
     /// Newmark-1 theta in [0.5, 1)
     pub theta: f64,
+    /// integrator steps per frame: [`crate::fem::Simulation::step`] advances one frame,
+    /// `substeps` steps of `dt` (`[time] substeps`, default 1)
+    pub substeps: usize,
 }
+
+/// The most integrator steps per frame (`[time] substeps`).
+pub const MAX_SUBSTEPS: usize = 1000;
 
 /// The Nitsche penalty `eta` of the held surface (eq. 4.4.16-4.4.17).
 ///
@@ -239,6 +245,7 @@ impl Default for Model {
             external_force: None,
             dt: 0.01,
             theta: 0.6,
+            substeps: 1,
         }
     }
 }
@@ -276,6 +283,12 @@ impl Model {
         }
         if !(self.dt > 0.0 && self.dt.is_finite()) {
             return bad("time.dt", format!("time step must be positive, got {}", self.dt));
+        }
+        if !(1..=MAX_SUBSTEPS).contains(&self.substeps) {
+            return bad(
+                "time.substeps",
+                format!("must lie in 1..={MAX_SUBSTEPS}, got {}", self.substeps),
+            );
         }
         if !(self.theta >= 0.5 && self.theta < 1.0) {
             return bad(

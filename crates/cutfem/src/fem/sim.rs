@@ -67,6 +67,23 @@ pub struct StepInfo {
     pub solve_s: f64,
 }
 
+impl StepInfo {
+    /// Adds the info of the next integrator step of the same frame: sums the iterations,
+    /// factorizations and seconds, keeps the largest residual and the latest contact count.
+    pub fn then(&mut self, s: StepInfo) {
+        self.iterations += s.iterations;
+        self.residual = self.residual.max(s.residual);
+        self.fallback |= s.fallback;
+        self.factorizations += s.factorizations;
+        self.factor_s += s.factor_s;
+        self.contacts = s.contacts;
+        self.assembly_s += s.assembly_s;
+        self.stiffness_s += s.stiffness_s;
+        self.collision_s += s.collision_s;
+        self.solve_s += s.solve_s;
+    }
+}
+
 /// A running simulation: the grid, its fixed data, and the state `(u, v)`.
 #[derive(Debug)]
 pub struct Simulation {
@@ -86,7 +103,7 @@ pub struct Simulation {
     pub u: Matrix<Vec3<f64>>,
     /// velocity
     pub v: Matrix<Vec3<f64>>,
-    /// steps done
+    /// integrator steps done (`model.substeps` per frame)
     pub steps: usize,
     /// solver settings
     pub solver: SolverSettings,
@@ -313,9 +330,20 @@ impl Simulation {
         (t.elapsed().as_secs_f64(), k)
     }
 
-    /// Advances one time step: [`Simulation::assemble_system`], then the solve and the
-    /// velocity update.
+    /// Advances one frame: `model.substeps` integrator steps ([`Simulation::substep`]; one
+    /// by default). The info sums the iterations, factorizations and seconds of the steps and
+    /// keeps the largest residual and the last contact count.
     pub fn step(&mut self) -> Result<StepInfo, Error> {
+        let mut info = self.substep()?;
+        for _ in 1..self.model.substeps {
+            info.then(self.substep()?);
+        }
+        Ok(info)
+    }
+
+    /// Advances one integrator step of `model.dt`: [`Simulation::assemble_system`], then the
+    /// solve and the velocity update (eq. 2.6.2-2.6.4).
+    pub fn substep(&mut self) -> Result<StepInfo, Error> {
         let mut info = self.assemble_system_with(false);
         let (dt, theta) = (self.model.dt, self.model.theta);
 

@@ -250,8 +250,18 @@ impl TetSimulation {
         }
     }
 
-    /// Advances one time step (the stage order of [`crate::fem::Simulation::step`]).
+    /// Advances one frame, `model.substeps` integrator steps (as
+    /// [`crate::fem::Simulation::step`]).
     pub fn step(&mut self) -> Result<StepInfo, Error> {
+        let mut info = self.substep()?;
+        for _ in 1..self.model.substeps {
+            info.then(self.substep()?);
+        }
+        Ok(info)
+    }
+
+    /// Advances one integrator step (the stage order of [`crate::fem::Simulation::substep`]).
+    fn substep(&mut self) -> Result<StepInfo, Error> {
         let mut info = StepInfo::default();
         let (dt, theta) = (self.model.dt, self.model.theta);
         let mut times = AssemblyTimes::default();

@@ -136,6 +136,11 @@ impl Scene {
             return Err(Error::format(path, msg));
         }
         check_steps(self.time.steps, "time.steps").map_err(|e| Error::format(path, e))?;
+        check_steps(
+            self.time.steps.saturating_mul(self.time.substeps),
+            "time.steps x time.substeps",
+        )
+        .map_err(|e| Error::format(path, e))?;
         let b = &self.body;
         let given = [b.sdf.is_some(), b.mesh.is_some(), b.shape.is_some()]
             .iter()
