@@ -257,4 +257,34 @@ mod tests {
         let e = check_steps(100_000_000_000, "--steps").unwrap_err();
         assert!(e.starts_with("--steps: 100000000000 steps"), "{e}");
     }
+
+    #[test]
+    fn substeps_are_checked_naming_the_key() {
+        let scene = |time: &str| {
+            let text = format!(
+                "[body]\nshape = {{ kind = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.3 }}\n[material]\nyoung = 1000.0\npoisson = 0.3\ndensity = 1.0\n[time]\n{time}\n"
+            );
+            Scene::parse(&text, Path::new("s.toml"))
+        };
+        let ok = scene("dt = 0.02\nsubsteps = 4").unwrap();
+        let m = ok.to_model();
+        assert_eq!((m.dt, m.substeps), (0.005, 4));
+        for (time, says) in [
+            (
+                "substeps = 0",
+                "s.toml: time.substeps: must lie in 1..=1000, got 0",
+            ),
+            (
+                "substeps = 1001",
+                "s.toml: time.substeps: must lie in 1..=1000, got 1001",
+            ),
+            (
+                "steps = 1000000\nsubsteps = 2",
+                "s.toml: time.steps x time.substeps: 2000000 steps",
+            ),
+        ] {
+            let e = scene(time).unwrap_err().to_string();
+            assert!(e.starts_with(says), "{time}: {e}");
+        }
+    }
 }
