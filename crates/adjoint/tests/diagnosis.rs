@@ -162,12 +162,25 @@ fn check(case: &Case, d: &Diagnosis, hidden: &str, sigma: f64) -> Refined {
 }
 
 fn torus_swing(effects: &[&str]) -> Scene {
+    torus_swing_for(effects, 0.02)
+}
+
+/// [`torus_swing`] for twice as long (10 steps of 0.04): with the consistent clamp and the
+/// incompatible element the hidden damping's noise-free misfit over 0.2 s (rms 1.18e-3 after
+/// the base fit) is a third of the camera noise, so the noisy case's margin (rms without the
+/// effect over the rms with it) was only 1.05, inside the noise floor's own error; damping
+/// needs time to show.
+fn torus_swing_long(effects: &[&str]) -> Scene {
+    torus_swing_for(effects, 0.04)
+}
+
+fn torus_swing_for(effects: &[&str], dt: f64) -> Scene {
     scene(
         TORUS,
         2000.0,
         &format!("[gravity]\nacceleration = [0.0, -10.0, 0.0]\n[damping]\nmass = 8.0\nstiffness = 0.0\n{HOLD_LEFT}"),
         effects,
-        0.02,
+        dt,
         10,
     )
 }
@@ -288,7 +301,7 @@ fn torus_hidden_gravity() {
 
 #[test]
 fn torus_hidden_damping() {
-    hidden_case(torus_swing, &["gravity", "corotation", "damping"], "damping");
+    hidden_case(torus_swing_long, &["gravity", "corotation", "damping"], "damping");
 }
 
 #[test]

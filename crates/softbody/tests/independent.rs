@@ -1,9 +1,9 @@
 //! The model against "the real world": observations computed by an independent finite element
 //! code (`tools/reference/generate.py`, scikit-fem, Q2 hexahedra, Newmark; the committed
 //! outputs in `tests/reference_values/independent`), used exactly as a user would, through
-//! `softbody fit` on the committed scene at its default resolution, with the most accurate
-//! element, clamp and surface (`[numerics] element = "incompatible"`, `nitsche = "consistent"`,
-//! `surface_subdivision = 2`; not yet the defaults, `docs/simulation.md`).
+//! `softbody fit` on the committed scene at its default resolution and default numerics (the
+//! incompatible element, the consistent Nitsche clamp, the surface from an SDF twice as fine;
+//! `docs/simulation.md`).
 //!
 //! - with every true parameter, the rms distance of the cantilever's, the block's and the
 //!   bouncing sphere's observed points to our surface is at most 1.15 times the noise floor (the rms a perfect model would
@@ -29,9 +29,8 @@ fn truth(name: &str) -> Value {
     serde_json::from_str(&std::fs::read_to_string(case(name).join("truth.json")).unwrap()).unwrap()
 }
 
-/// The committed scene of case `name` with the incompatible element, the consistent Nitsche
-/// clamp and the surface from an SDF twice as fine, `young` and `poisson` replaced when given,
-/// written to a scratch folder.
+/// The committed scene of case `name`, `young` and `poisson` replaced when given, written to a
+/// scratch folder.
 fn scene(name: &str, tag: &str, start: Option<(f64, f64)>) -> PathBuf {
     let t = truth(name);
     let (young, poisson) = (
@@ -46,9 +45,6 @@ fn scene(name: &str, tag: &str, start: Option<(f64, f64)>) -> PathBuf {
         assert!(text.contains(&format!("young = {e:.1}\n")) && text.contains(&format!("poisson = {nu}\n")));
     }
     assert!(!text.contains("[numerics]"));
-    text.push_str(
-        "\n[numerics]\nelement = \"incompatible\"\nnitsche = \"consistent\"\nsurface_subdivision = 2\n",
-    );
     common::write(&tmp("independent", tag), "scene.toml", &text)
 }
 

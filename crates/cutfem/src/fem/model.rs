@@ -196,10 +196,10 @@ pub const DEFAULT_NITSCHE_GAMMA: f64 = 20.0;
 pub enum NitscheQuadrature {
     /// the thesis' (eq. 4.4.15-4.4.17): nodal weights `w_b(e, i)`, the traction at the
     /// corners and the cell's mean normal; its penalty is the fixed 1e8 unless given
-    #[default]
     Thesis,
     /// consistent quadrature over the held surface; its penalty is the scaled one
-    /// ([`NitschePenalty::Scaled`] with [`DEFAULT_NITSCHE_GAMMA`]) unless given
+    /// ([`NitschePenalty::Scaled`] with [`DEFAULT_NITSCHE_GAMMA`]) unless given (the default)
+    #[default]
     Consistent,
 }
 

@@ -6,7 +6,7 @@ use serde::Deserialize;
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct NumericsSection {
-    /// how the Nitsche terms are integrated: "thesis" (default) or "consistent"
+    /// how the Nitsche terms are integrated: "consistent" (default) or "thesis"
     /// ([`crate::fem::NitscheQuadrature`])
     #[serde(default)]
     pub nitsche: crate::fem::NitscheQuadrature,
@@ -32,8 +32,8 @@ pub struct NumericsSection {
     /// or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
     pub preconditioner: PreconditionerName,
-    /// the grid element: "trilinear" (the thesis', default), "trilinear_exact",
-    /// "incompatible", "incompatible_corner" ([`crate::fem::element::Element`])
+    /// the grid element: "incompatible" (default), "trilinear" (the thesis'),
+    /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
     #[serde(default)]
     pub element: crate::fem::element::Element,
     /// the observed surface is extracted from the body's SDF sampled this many times finer than
@@ -88,8 +88,9 @@ fn cg_max() -> usize {
 fn surface_subdivision() -> usize {
     DEFAULT_SURFACE_SUBDIVISION
 }
-/// Default `[numerics].surface_subdivision`.
-pub const DEFAULT_SURFACE_SUBDIVISION: usize = 1;
+/// Default `[numerics].surface_subdivision`: the surface from an SDF twice as fine as the grid
+/// (`docs/simulation.md`, "The observed surface").
+pub const DEFAULT_SURFACE_SUBDIVISION: usize = 2;
 impl Default for NumericsSection {
     fn default() -> Self {
         Self {

@@ -76,14 +76,14 @@ use gpumat::{Mat3, Vec3};
 #[serde(rename_all = "snake_case")]
 pub enum Element {
     /// the thesis' element: trilinear, corner rule (sec. 4.4.1.1)
-    #[default]
     Trilinear,
     /// trilinear, exact integration over the cut part
     TrilinearExact,
     /// trilinear with incompatible modes, corner rule
     IncompatibleCorner,
     /// trilinear with incompatible modes, exact integration (the most accurate: see
-    /// `docs/simulation.md`, "Element")
+    /// `docs/simulation.md`, "Element"; the default)
+    #[default]
     Incompatible,
 }
 
