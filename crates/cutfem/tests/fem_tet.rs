@@ -257,8 +257,11 @@ fn clamped(x_min: f64, h: f64, young: f64) -> Model {
         }],
         dt: 0.01,
         theta: 0.6,
-        // the thesis' comparison (sec. 4.6) is of its own grid element with the tetrahedra
+        // the thesis' comparison (sec. 4.6) is of its own grid element and nodal clamp (its
+        // penalty 1e8 pins the slab, as the tetrahedra's fixed nodes do) with the tetrahedra
         element: cutfem::fem::element::Element::Trilinear,
+        nitsche_quadrature: cutfem::fem::NitscheQuadrature::Thesis,
+        nitsche: cutfem::fem::NitscheQuadrature::Thesis.default_penalty(),
         ..Model::default()
     }
 }
