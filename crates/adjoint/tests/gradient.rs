@@ -66,10 +66,15 @@ fn start() -> Model {
 }
 
 fn trajectory(model: Model) -> Vec<Matrix<Vec3<f64>>> {
+    frames(model, STEPS)
+}
+
+/// The displacement of frames `0..=n` (each `model.substeps` steps).
+fn frames(model: Model, n: usize) -> Vec<Matrix<Vec3<f64>>> {
     let mut sim = Simulation::new(grid(), model).unwrap();
     sim.solver.direct = true;
     let mut out = vec![sim.u.clone()];
-    for _ in 0..STEPS {
+    for _ in 0..n {
         sim.step().unwrap();
         out.push(sim.u.clone());
     }
@@ -507,16 +512,7 @@ fn substepped(mut m: Model) -> Model {
 #[test]
 fn a_frame_of_substeps_is_that_many_steps() {
     let steps = trajectory(Model { dt: 0.005, ..truth() });
-    let frames = {
-        let mut sim = Simulation::new(grid(), substepped(truth())).unwrap();
-        sim.solver.direct = true;
-        let mut out = vec![sim.u.clone()];
-        for _ in 0..STEPS / 2 {
-            sim.step().unwrap();
-            out.push(sim.u.clone());
-        }
-        out
-    };
+    let frames = frames(substepped(truth()), STEPS / 2);
     for (f, u) in frames.iter().enumerate() {
         let d = u
             .as_slice()
@@ -532,16 +528,7 @@ fn a_frame_of_substeps_is_that_many_steps() {
 /// read the cost at the frames only.
 #[test]
 fn substep_gradient_and_gauss_newton_match_finite_differences() {
-    let reference = {
-        let mut sim = Simulation::new(grid(), substepped(truth())).unwrap();
-        sim.solver.direct = true;
-        let mut out = vec![sim.u.clone()];
-        for _ in 0..STEPS / 2 {
-            sim.step().unwrap();
-            out.push(sim.u.clone());
-        }
-        out
-    };
+    let reference = frames(substepped(truth()), STEPS / 2);
     let cost = DisplacementCost {
         reference: vec![(2, 1.0, reference[2].clone()), (3, 0.5, reference[3].clone())],
     };
