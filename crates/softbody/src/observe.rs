@@ -237,7 +237,7 @@ pub fn run(a: Args) -> Result<(), String> {
         sim.step().map_err(|e| format!("step {f}: {e}"))?;
         if !sim.u.as_slice().iter().all(gpumat::Scalar::is_finite) {
             return Err(format!(
-                "step {f}: the simulation diverged (non-finite displacement); reduce time.dt ({})",
+                "step {f}: the simulation diverged (non-finite displacement); reduce time.dt ({}) or raise time.substeps",
                 sim.scales_note()
             ));
         }

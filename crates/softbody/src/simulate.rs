@@ -160,7 +160,7 @@ pub fn run(a: Args) -> Result<(), String> {
         fallbacks += info.fallback as usize;
         if !sim.u.as_slice().iter().all(gpumat::Scalar::is_finite) {
             return Err(format!(
-                "step {f}: the simulation diverged (non-finite displacement); reduce time.dt ({})",
+                "step {f}: the simulation diverged (non-finite displacement); reduce time.dt ({}) or raise time.substeps",
                 sim.scales_note()
             ));
         }
