@@ -9,6 +9,7 @@ pub mod model;
 pub mod plausible;
 pub mod sim;
 pub mod solver;
+mod step_info;
 pub mod tet;
 
 pub use assembly::{Assembler, Material};
