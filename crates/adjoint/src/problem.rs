@@ -168,6 +168,11 @@ impl Problem {
         })
     }
 
+    /// Integrator steps simulated: `steps` frames of `model.substeps` steps each.
+    pub fn integrator_steps(&self) -> usize {
+        self.steps * self.base.substeps
+    }
+
     /// The starting point in unconstrained coordinates.
     pub fn x0(&self) -> Vec<f64> {
         self.params.to_x(&self.base)
@@ -207,7 +212,7 @@ impl Problem {
         });
         let mut cost_s = 0.0;
         let substeps = self.base.substeps;
-        for t in 0..=self.steps * substeps {
+        for t in 0..=self.integrator_steps() {
             if t > 0 {
                 let info = self
                     .sim
@@ -267,7 +272,7 @@ impl Problem {
         let frames = self.cost.frames();
         let mut cost_s = 0.0;
         let substeps = self.base.substeps;
-        let last = self.steps * substeps;
+        let last = self.integrator_steps();
         // dJ/du(t) of an observed frame, recomputed from the stored state
         let mut cost_grad =
             |cost: &dyn Cost, t: usize, u: &Matrix<Vec3<f64>>| -> Result<Matrix<Vec3<f64>>, ProblemError> {

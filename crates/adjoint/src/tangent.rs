@@ -87,7 +87,7 @@ impl Problem {
         }
         let c = 1.0 / (theta * dt);
         let substeps = model.substeps;
-        for t in 1..=self.steps * substeps {
+        for t in 1..=self.integrator_steps() {
             let (u0, v0) = (self.sim.u.clone(), self.sim.v.clone());
             self.sim
                 .substep()
