@@ -17,17 +17,19 @@
 //! zero on exactly the surface that is shown and observed, so noise-free observations of a
 //! simulation are fitted to zero residual (the level-set cost keeps an `O(h^2)` floor from the
 //! difference of the two surfaces, about 0.8% of a cell on the swinging torus).
-//! Triangles are found through a uniform hash of their bounding boxes (bins of one cell),
-//! searching the point's bin and its neighbours within `2h`; a point farther than that from every
-//! triangle gets the constant cost `rho(2h)` and no gradient.
+//! Triangles are found through a uniform hash of their bounding boxes (bins of one cell,
+//! [`bins`]), searching the point's bin and its neighbours within `2h`; a point farther than
+//! that from every triangle gets the constant cost `rho(2h)` and no gradient.
 
 use crate::cost::{frame_points, gauss_newton_matrix, Cost, FrameCost, ObservedPoint, Robust};
+use bins::FaceBins;
 use cutfem::fem::grid::INACTIVE;
 use cutfem::fem::Grid;
 use cutfem::surface::Surface;
 use gpumat::{Matrix, Vec3};
 use rayon::prelude::*;
-use std::collections::HashMap;
+
+mod bins;
 
 /// Where a point's residual comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -128,36 +130,6 @@ fn node_u(u: &[Vec3<f64>], d: u32) -> Vec3<f64> {
     } else {
         u[d as usize]
     }
-}
-
-/// The triangle in the bins within two of bin `c` with the smallest `key` (`None`: skip it),
-/// ties going to the lower face index: `(key, face, barycentric)`.
-fn best_near_face(
-    hash: &HashMap<[i64; 3], Vec<u32>>,
-    c: [i64; 3],
-    mut key: impl FnMut(u32) -> Option<(f64, [f64; 3])>,
-) -> Option<(f64, usize, [f64; 3])> {
-    let mut best: Option<(f64, usize, [f64; 3])> = None;
-    for dz in -2..=2 {
-        for dy in -2..=2 {
-            for dx in -2..=2 {
-                let Some(list) = hash.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
-                    continue;
-                };
-                for &fi in list {
-                    let Some((k, bary)) = key(fi) else { continue };
-                    let better = match best {
-                        None => true,
-                        Some((bk, bf, _)) => k < bk || (k == bk && (fi as usize) < bf),
-                    };
-                    if better {
-                        best = Some((k, fi as usize, bary));
-                    }
-                }
-            }
-        }
-    }
-    best
 }
 
 /// Rays meeting a triangle at `|n . d|` below this use the closest-point residual instead.
@@ -270,46 +242,24 @@ impl SurfaceCost {
             return Vec::new();
         }
         // bins of half the reach: the 5x5x5 bins searched around a point cover it
-        let inv = 1.0 / self.h.max(0.5 * self.outside_residual);
-        let bin = |p: Vec3<f64>| p.to_array().map(|v| (v * inv).floor() as i64);
         let faces = &self.surface.mesh.faces;
-        let mut hash: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
-        for (fi, f) in faces.iter().enumerate() {
-            let [a, b, c] = f.map(|v| x[v as usize].to_array());
-            let lo = bin(Vec3::from_array(std::array::from_fn(|d| {
-                a[d].min(b[d]).min(c[d])
-            })));
-            let hi = bin(Vec3::from_array(std::array::from_fn(|d| {
-                a[d].max(b[d]).max(c[d])
-            })));
-            if (0..3).any(|d| hi[d] - lo[d] > 8) {
-                continue; // an exploded triangle
-            }
-            for z in lo[2]..=hi[2] {
-                for y in lo[1]..=hi[1] {
-                    for xx in lo[0]..=hi[0] {
-                        hash.entry([xx, y, z]).or_default().push(fi as u32);
-                    }
-                }
-            }
-        }
+        let bins = FaceBins::new(faces, x, self.h.max(0.5 * self.outside_residual));
         let reach = self.outside_residual;
         points
             .par_iter()
             .map(|pt| {
                 let p = pt.position;
-                let c = bin(p);
                 // along the viewing ray: the first hit among the triangles near the point
                 if let Some(eye) = pt.eye {
-                    if let Some(hit) = self.ray_hit(&hash, c, x, eye, p) {
+                    if let Some(hit) = self.ray_hit(&bins, x, eye, p) {
                         return Some(hit);
                     }
                 }
-                let best = best_near_face(&hash, c, |fi| {
+                let best = bins.closest(p, |fi| {
                     let [a, b, cc] = faces[fi as usize].map(|v| x[v as usize]);
                     let bary = closest_on_triangle(p, a, b, cc);
                     let q = a * bary[0] + b * bary[1] + cc * bary[2];
-                    Some(((p - q).dot(p - q), bary))
+                    ((p - q).dot(p - q), bary)
                 });
                 let (d2, face, bary) = best?;
                 if d2.sqrt() > reach {
@@ -337,22 +287,15 @@ impl SurfaceCost {
     }
 
     /// The ray residual of a point `p` seen from `eye` (module docs): the first intersection
-    /// of the ray with the triangles in the bins around `p` (bin `c`), if it is not grazing.
-    fn ray_hit(
-        &self,
-        hash: &HashMap<[i64; 3], Vec<u32>>,
-        c: [i64; 3],
-        x: &[Vec3<f64>],
-        eye: Vec3<f64>,
-        p: Vec3<f64>,
-    ) -> Option<MeshHit> {
+    /// of the ray with the triangles in the bins around `p`, if it is not grazing.
+    fn ray_hit(&self, bins: &FaceBins, x: &[Vec3<f64>], eye: Vec3<f64>, p: Vec3<f64>) -> Option<MeshHit> {
         let faces = &self.surface.mesh.faces;
         let s_obs = (p - eye).norm();
         if s_obs <= 0.0 {
             return None;
         }
         let d = (p - eye) * (1.0 / s_obs);
-        let best = best_near_face(hash, c, |fi| {
+        let best = bins.first_hit(p, eye, d, |fi| {
             let [a, b, cc] = faces[fi as usize].map(|v| x[v as usize]);
             ray_triangle(eye, d, a, b, cc)
         });
