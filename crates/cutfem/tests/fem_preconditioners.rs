@@ -213,7 +213,7 @@ poisson = 0.3
 "#;
     let path = Path::new("scene.toml");
     let scene = Scene::parse(base, path).unwrap();
-    assert_eq!(scene.numerics.preconditioner, PreconditionerName::BlockJacobi);
+    assert_eq!(scene.numerics.preconditioner, PreconditionerName::BlockIc0);
     for (name, want) in [
         ("block_jacobi", Preconditioner::BlockJacobi),
         ("block_ic0", Preconditioner::BlockIc0),

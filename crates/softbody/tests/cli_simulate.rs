@@ -31,8 +31,9 @@ fn simulate_writes_frames_picture_and_json() {
     assert_eq!(v["steps"], 4);
     assert!(v["nodes"]["active"].as_u64().unwrap() > 0);
     assert_eq!(v["solver"]["iterations"].as_array().unwrap().len(), 4);
-    assert_eq!(v["solver"]["preconditioner"], "block_jacobi");
-    assert_eq!(v["solver"]["factorizations"], 0);
+    assert_eq!(v["solver"]["preconditioner"], "block_ic0");
+    // one incomplete factorization a step
+    assert_eq!(v["solver"]["factorizations"], 4);
     assert!(v["final"]["max_displacement"].as_f64().unwrap() > 0.0);
     for f in 0..=4 {
         assert!(out.join(format!("frames/{f:04}.ply")).exists(), "frame {f}");

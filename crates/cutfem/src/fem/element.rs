@@ -18,7 +18,7 @@ use gpumat::{Mat3, Vec3};
 mod blocks;
 mod enhanced;
 
-pub use blocks::ElementBlocks;
+pub use blocks::{BlockCache, ElementBlocks};
 pub use enhanced::{gram, Element, ElementSet, Gram, FICTITIOUS_STIFFNESS, MONOMIALS};
 
 /// `grad N_i` at corner `c` of a cell of size `h`.

@@ -27,7 +27,7 @@ mod kept;
 use super::assembly::{fill_newmark, Assembler, CellWork, ElementBlocks, Material};
 use super::assembly::{StepCells, StepOutput, StepState};
 use super::collision::{add_ground_forces, crossings, Crossing};
-use super::element::POLAR_ITERATIONS;
+use super::element::{BlockCache, POLAR_ITERATIONS};
 use super::grid::Grid;
 use super::model::Model;
 use super::plausible::extent;
@@ -68,7 +68,7 @@ pub struct Simulation {
     /// after a step ([`Simulation::stiffness`])
     k: KeptStiffness,
     a: SparseMatrix<Mat3<f64>>,
-    blocks: Option<ElementBlocks>,
+    blocks: BlockCache,
     linear: LinearSolver,
     rotations: Option<Vec<Mat3<f64>>>,
     /// per-cell data of the corotated assembly (buffers reused by every step)
@@ -116,7 +116,7 @@ impl Simulation {
             solver: SolverSettings::default(),
             k: KeptStiffness::default(),
             a,
-            blocks: None,
+            blocks: BlockCache::default(),
             linear,
             rotations: None,
             cell_work: CellWork::default(),
@@ -204,12 +204,12 @@ impl Simulation {
         }
     }
 
-    /// The element blocks for the current material (rebuilt when `E` or `nu` changed).
+    /// The element blocks for the current material (built when not among the kept ones).
     fn blocks(&mut self) -> ElementBlocks {
         let m = self.material();
-        match self.blocks.take() {
-            Some(b) if b.is_for(m.element, m.lambda, m.mu) => b,
-            _ => self.assembler.element_blocks(&self.grid, &m),
+        match self.blocks.take(m.element, m.lambda, m.mu) {
+            Some(b) => b,
+            None => self.assembler.element_blocks(&self.grid, &m),
         }
     }
 
@@ -282,7 +282,7 @@ impl Simulation {
                 f: &mut self.f,
             },
         );
-        self.blocks = Some(blocks);
+        self.blocks.keep(blocks);
         self.rotations = rot;
         (t.elapsed().as_secs_f64(), k)
     }
@@ -408,7 +408,7 @@ impl Simulation {
     /// no inertia) under the body forces, with Nitsche Dirichlet terms.
     pub fn solve_static(&mut self) -> Result<StepInfo, Error> {
         let (_, blocks) = self.assemble_stiffness(false);
-        self.blocks = Some(blocks);
+        self.blocks.keep(blocks);
         self.f
             .assign(self.mass.ex().cwise_mul(gpumat::scalar(self.model.gravity)));
         if let Some(e) = &self.model.external_force {
@@ -441,7 +441,7 @@ impl Simulation {
                 &mut f,
             );
         }
-        self.blocks = Some(blocks);
+        self.blocks.keep(blocks);
         f
     }
 
@@ -469,7 +469,7 @@ impl Simulation {
 
     /// The unrotated element blocks of the last assembly.
     pub fn element_blocks(&self) -> Option<&ElementBlocks> {
-        self.blocks.as_ref()
+        self.blocks.last()
     }
 
     /// The force vector `f` of the last assembly: body, external and contact forces (the
@@ -505,9 +505,9 @@ impl Simulation {
         self.k.get_or_compute(|| {
             let m = self.material();
             let mut fresh = None;
-            let blocks = match &self.blocks {
-                Some(b) if b.is_for(m.element, m.lambda, m.mu) => b,
-                _ => &*fresh.insert(ElementBlocks::build(&self.grid, m.element, m.lambda, m.mu, false)),
+            let blocks = match self.blocks.get(m.element, m.lambda, m.mu) {
+                Some(b) => b,
+                None => &*fresh.insert(ElementBlocks::build(&self.grid, m.element, m.lambda, m.mu, false)),
             };
             let mut k = SparseMatrix::zeros(self.assembler.pattern().clone(), 1);
             let rotations = self.rotations.as_deref().filter(|_| self.model.corotation);

@@ -28,8 +28,8 @@ pub struct NumericsSection {
     /// thesis' Poisson diffusion) or "linear" (reproduces linear fields exactly)
     #[serde(default)]
     pub diffusion: DiffusionName,
-    /// CG preconditioner of the step's linear solve: "block_jacobi" (the thesis'), "block_ic0"
-    /// or "rest_cholesky" ([`crate::fem::solver`])
+    /// CG preconditioner of the step's linear solve: "block_ic0" (default), "block_jacobi" (the
+    /// thesis') or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
     pub preconditioner: PreconditionerName,
     /// the grid element: "incompatible" (default), "trilinear" (the thesis'),
@@ -51,9 +51,9 @@ pub const MAX_SURFACE_SUBDIVISION: usize = 8;
 #[serde(rename_all = "snake_case")]
 pub enum PreconditionerName {
     /// inverse 3x3 diagonal blocks (the thesis')
-    #[default]
     BlockJacobi,
     /// relaxed modified block incomplete Cholesky on the matrix's pattern, every step
+    #[default]
     BlockIc0,
     /// sparse Cholesky factor of the rest state, reused while it works
     RestCholesky,

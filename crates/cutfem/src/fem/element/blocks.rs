@@ -111,3 +111,66 @@ impl ElementBlocks {
         &self.columns[self.set_of[e] as usize]
     }
 }
+
+/// The element blocks of the last few materials, newest last: a Gauss-Newton tangent
+/// alternates between a material and its perturbations `E (1 +- eps)`, `nu +- eps` every step,
+/// and each would otherwise rebuild (and condense) every cell's blocks. Holds at most
+/// [`BlockCache::MAX_MATERIALS`] materials and [`BlockCache::MAX_BYTES`] bytes, dropping the
+/// oldest.
+#[derive(Clone, Debug, Default)]
+pub struct BlockCache {
+    recent: Vec<ElementBlocks>,
+}
+
+impl BlockCache {
+    /// Most materials kept (a material and the two sides of two parameters, and one spare).
+    pub const MAX_MATERIALS: usize = 6;
+    /// Most bytes kept.
+    pub const MAX_BYTES: usize = 256 << 20;
+
+    /// Removes and returns the blocks of `(element, lambda, mu)`, if kept.
+    pub fn take(&mut self, element: Element, lambda: f64, mu: f64) -> Option<ElementBlocks> {
+        let i = self.recent.iter().position(|b| b.is_for(element, lambda, mu))?;
+        Some(self.recent.remove(i))
+    }
+
+    /// The kept blocks of `(element, lambda, mu)`.
+    pub fn get(&self, element: Element, lambda: f64, mu: f64) -> Option<&ElementBlocks> {
+        self.recent.iter().rev().find(|b| b.is_for(element, lambda, mu))
+    }
+
+    /// The blocks kept last.
+    pub fn last(&self) -> Option<&ElementBlocks> {
+        self.recent.last()
+    }
+
+    /// Keeps `blocks` as the newest (replacing those of the same material), then drops the
+    /// oldest beyond the limits; the newest is always kept.
+    pub fn keep(&mut self, blocks: ElementBlocks) {
+        self.recent
+            .retain(|b| !b.is_for(blocks.element, blocks.lambda, blocks.mu));
+        self.recent.push(blocks);
+        let mut bytes: usize = self.recent.iter().map(ElementBlocks::bytes).sum();
+        while self.recent.len() > 1 && (self.recent.len() > Self::MAX_MATERIALS || bytes > Self::MAX_BYTES) {
+            bytes -= self.recent.remove(0).bytes();
+        }
+    }
+
+    /// Number of materials kept.
+    pub fn len(&self) -> usize {
+        self.recent.len()
+    }
+
+    /// Whether nothing is kept.
+    pub fn is_empty(&self) -> bool {
+        self.recent.is_empty()
+    }
+}
+
+impl ElementBlocks {
+    /// Approximate heap bytes of these blocks.
+    fn bytes(&self) -> usize {
+        self.sets.len() * (std::mem::size_of::<ElementSet>() + std::mem::size_of::<[[PaddedBlock; 8]; 8]>())
+            + self.set_of.len() * std::mem::size_of::<u32>()
+    }
+}
