@@ -61,7 +61,7 @@ pub fn solver_settings(scene: &Scene, settings: cutfem::fem::SolverSettings) -> 
     let mut s = settings;
     s.cg.tolerance = scene.numerics.cg_tolerance;
     s.cg.max_iterations = scene.numerics.cg_max_iterations;
-    s.preconditioner = scene.numerics.preconditioner.into();
+    s.preconditioner = scene.numerics.preconditioner;
     s
 }
 

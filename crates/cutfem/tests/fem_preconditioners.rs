@@ -6,7 +6,7 @@
 
 use cutfem::fem::solver::{solve, LinearSolver};
 use cutfem::fem::{Aabb, Grid, Ground, Model, Preconditioner, Simulation, SolverSettings};
-use cutfem::scene::{PreconditionerName, Scene};
+use cutfem::scene::Scene;
 use cutfem::shapes::Shape;
 use gpumat::{Matrix, Vec3};
 use std::path::Path;
@@ -213,7 +213,7 @@ poisson = 0.3
 "#;
     let path = Path::new("scene.toml");
     let scene = Scene::parse(base, path).unwrap();
-    assert_eq!(scene.numerics.preconditioner, PreconditionerName::BlockIc0);
+    assert_eq!(scene.numerics.preconditioner, Preconditioner::BlockIc0);
     for (name, want) in [
         ("block_jacobi", Preconditioner::BlockJacobi),
         ("block_ic0", Preconditioner::BlockIc0),
@@ -221,7 +221,7 @@ poisson = 0.3
     ] {
         let text = format!("{base}[numerics]\npreconditioner = \"{name}\"\n");
         let scene = Scene::parse(&text, path).unwrap();
-        let p: Preconditioner = scene.numerics.preconditioner.into();
+        let p = scene.numerics.preconditioner;
         assert_eq!((p, p.name()), (want, name));
     }
     let err = Scene::parse(&format!("{base}[numerics]\npreconditioner = \"amg\"\n"), path)

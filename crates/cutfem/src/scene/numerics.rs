@@ -31,7 +31,7 @@ pub struct NumericsSection {
     /// CG preconditioner of the step's linear solve: "block_ic0" (default), "block_jacobi" (the
     /// thesis') or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
-    pub preconditioner: PreconditionerName,
+    pub preconditioner: crate::fem::Preconditioner,
     /// the grid element: "incompatible" (default), "trilinear" (the thesis'),
     /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
     #[serde(default)]
@@ -46,29 +46,6 @@ pub struct NumericsSection {
 /// Largest `[numerics].surface_subdivision`.
 pub const MAX_SURFACE_SUBDIVISION: usize = 8;
 
-/// `[numerics].preconditioner`
-#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum PreconditionerName {
-    /// inverse 3x3 diagonal blocks (the thesis')
-    BlockJacobi,
-    /// relaxed modified block incomplete Cholesky on the matrix's pattern, every step
-    #[default]
-    BlockIc0,
-    /// sparse Cholesky factor of the rest state, reused while it works
-    RestCholesky,
-}
-
-impl From<PreconditionerName> for crate::fem::Preconditioner {
-    fn from(p: PreconditionerName) -> Self {
-        match p {
-            PreconditionerName::BlockJacobi => Self::BlockJacobi,
-            PreconditionerName::BlockIc0 => Self::BlockIc0,
-            PreconditionerName::RestCholesky => Self::RestCholesky,
-        }
-    }
-}
-
 /// `[numerics].diffusion`
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
@@ -80,10 +57,10 @@ pub enum DiffusionName {
     Linear,
 }
 fn cg_tol() -> f64 {
-    1e-8
+    crate::fem::SolverSettings::default().cg.tolerance
 }
 fn cg_max() -> usize {
-    2000
+    crate::fem::SolverSettings::default().cg.max_iterations
 }
 fn surface_subdivision() -> usize {
     DEFAULT_SURFACE_SUBDIVISION
@@ -100,7 +77,7 @@ impl Default for NumericsSection {
             cg_tolerance: cg_tol(),
             cg_max_iterations: cg_max(),
             diffusion: DiffusionName::default(),
-            preconditioner: PreconditionerName::default(),
+            preconditioner: crate::fem::Preconditioner::default(),
             element: crate::fem::element::Element::default(),
             surface_subdivision: surface_subdivision(),
         }
