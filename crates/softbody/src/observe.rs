@@ -235,12 +235,7 @@ pub fn run(a: Args) -> Result<(), String> {
     for f in 1..=last {
         let t = Instant::now();
         sim.step().map_err(|e| format!("step {f}: {e}"))?;
-        if !sim.u.as_slice().iter().all(gpumat::Scalar::is_finite) {
-            return Err(format!(
-                "step {f}: the simulation diverged (non-finite displacement); reduce time.dt ({}) or raise time.substeps",
-                sim.scales_note()
-            ));
-        }
+        sim.check_finite().map_err(|e| format!("step {f}: {e}"))?;
         t_sim += t.elapsed().as_secs_f64();
         keep(f, deformed_surface(&surface, &sim.grid, &sim.u), &mut obs);
         pb.inc(1);

@@ -158,12 +158,7 @@ pub fn run(a: Args) -> Result<(), String> {
         iterations.push(info.iterations);
         max_residual = max_residual.max(info.residual);
         fallbacks += info.fallback as usize;
-        if !sim.u.as_slice().iter().all(gpumat::Scalar::is_finite) {
-            return Err(format!(
-                "step {f}: the simulation diverged (non-finite displacement); reduce time.dt ({}) or raise time.substeps",
-                sim.scales_note()
-            ));
-        }
+        sim.check_finite().map_err(|e| format!("step {f}: {e}"))?;
         // sec. 4.4.5: diffuse into the empty band, advect the level set
         let t_adv = Instant::now();
         let u_band = band

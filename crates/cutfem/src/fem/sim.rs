@@ -467,6 +467,18 @@ impl Simulation {
         &self.contact
     }
 
+    /// An error naming `time.dt` and `time.substeps` once the displacement is no longer
+    /// finite (the steps diverged).
+    pub fn check_finite(&self) -> Result<(), Error> {
+        if self.u.as_slice().iter().all(gpumat::Scalar::is_finite) {
+            return Ok(());
+        }
+        Err(Error::Invalid(format!(
+            "the simulation diverged (non-finite displacement); reduce time.dt ({}) or raise time.substeps",
+            self.scales_note()
+        )))
+    }
+
     /// The unrotated element blocks of the last assembly.
     pub fn element_blocks(&self) -> Option<&ElementBlocks> {
         self.blocks.last()

@@ -155,16 +155,6 @@ impl BlockCache {
             bytes -= self.recent.remove(0).bytes();
         }
     }
-
-    /// Number of materials kept.
-    pub fn len(&self) -> usize {
-        self.recent.len()
-    }
-
-    /// Whether nothing is kept.
-    pub fn is_empty(&self) -> bool {
-        self.recent.is_empty()
-    }
 }
 
 impl ElementBlocks {
