@@ -51,6 +51,8 @@ pub struct Grid {
     /// the body's SDF sampled finer than [`Grid::sdf`], from which the observed surface is
     /// extracted ([`Grid::surface`]); `None`: the surface comes from `sdf` itself
     pub surface_sdf: Option<SdfGrid>,
+    /// how the observed surface is extracted ([`Grid::surface`])
+    pub surface_method: crate::surface::SurfaceMethod,
 }
 
 /// Memory (bytes) one active node costs in the simulation: the 27 BSR blocks of K and A in
@@ -177,6 +179,7 @@ impl Grid {
             node_dofs,
             positions,
             surface_sdf: None,
+            surface_method: Default::default(),
         })
     }
 
@@ -187,15 +190,28 @@ impl Grid {
         self
     }
 
+    /// The grid whose observed surface is extracted by `method`.
+    pub fn with_surface_method(mut self, method: crate::surface::SurfaceMethod) -> Self {
+        self.surface_method = method;
+        self
+    }
+
     /// The body's surface as it is shown, observed and compared with measurements: marching
-    /// cubes on [`Grid::surface_sdf`] (else on [`Grid::sdf`]), every vertex moved by the
-    /// trilinear displacement field of the simulation cell that holds it
-    /// ([`crate::surface::embed`]).
+    /// cubes or dual contouring ([`Grid::surface_method`]) on [`Grid::surface_sdf`] (else on
+    /// [`Grid::sdf`]), every vertex moved by the trilinear displacement field of the
+    /// simulation cell that holds it ([`crate::surface::embed`]; a marching-cubes vertex of
+    /// the grid itself by its edge).
     pub fn surface(&self) -> Result<crate::surface::Surface, Error> {
-        let Some(fine) = &self.surface_sdf else {
-            return Ok(crate::surface::extract_surface(&self.sdf));
+        use crate::surface::{dual_contour, extract_surface, SurfaceMethod};
+        let sdf = self.surface_sdf.as_ref().unwrap_or(&self.sdf);
+        let surface = match self.surface_method {
+            SurfaceMethod::MarchingCubes if self.surface_sdf.is_none() => {
+                return Ok(extract_surface(&self.sdf))
+            }
+            SurfaceMethod::MarchingCubes => extract_surface(sdf),
+            SurfaceMethod::DualContouring => dual_contour(sdf),
         };
-        crate::surface::extract_surface(fine)
+        surface
             .embedded_in(&self.sdf, |n| self.node_dofs[n] != INACTIVE)
             .map_err(Error::Invalid)
     }

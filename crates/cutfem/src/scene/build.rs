@@ -19,7 +19,9 @@ impl Scene {
     pub fn grid_at(&self, resolution: Option<f64>) -> Result<Grid, Error> {
         let sdf = self.body_sdf_at(resolution)?;
         let r = 1.0 / sdf.spacing;
-        let grid = Grid::new(sdf).map_err(|e| Error::format(&self.path, e.to_string()))?;
+        let grid = Grid::new(sdf)
+            .map_err(|e| Error::format(&self.path, e.to_string()))?
+            .with_surface_method(self.numerics.surface_method);
         let s = self.numerics.surface_subdivision;
         if s <= 1 {
             return Ok(grid);

@@ -41,6 +41,11 @@ pub struct NumericsSection {
     /// the trilinear field of its cell ([`crate::fem::Grid::surface`]); 1..=8
     #[serde(default = "surface_subdivision")]
     pub surface_subdivision: usize,
+    /// how the observed surface is extracted: "marching_cubes" (default; vertices on grid
+    /// edges, sharp edges bevelled by up to a surface cell) or "dual_contouring" (one vertex
+    /// per cut cell, sharp edges and corners kept; [`crate::surface::dual_contour`])
+    #[serde(default)]
+    pub surface_method: crate::surface::SurfaceMethod,
 }
 
 /// Largest `[numerics].surface_subdivision`.
@@ -80,6 +85,7 @@ impl Default for NumericsSection {
             preconditioner: crate::fem::Preconditioner::default(),
             element: crate::fem::element::Element::default(),
             surface_subdivision: surface_subdivision(),
+            surface_method: Default::default(),
         }
     }
 }

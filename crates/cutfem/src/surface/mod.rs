@@ -52,14 +52,28 @@
 //! inside nodes lie on the grid boundary the surface is open there (there are no cells beyond
 //! the grid to close it).
 
+mod dual;
 mod embed;
 mod ply;
 
+pub use dual::dual_contour;
 pub use embed::{embed, Embedding};
 pub use ply::{write_ply, write_ply_with_scalar};
 
 use crate::{SdfGrid, TriMesh};
 use std::collections::{HashMap, HashSet};
+
+/// How the observed surface is extracted from the SDF (`[numerics] surface_method`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SurfaceMethod {
+    /// marching cubes, every vertex on a grid edge ([`extract_surface`]; the thesis' surface)
+    #[default]
+    MarchingCubes,
+    /// dual contouring, one vertex per cut cell that keeps sharp edges and corners
+    /// ([`dual_contour`])
+    DualContouring,
+}
 
 /// Interpolation weights are clamped to `[SNAP, 1 - SNAP]`, keeping every vertex at least
 /// `SNAP * h` away from the grid nodes (no degenerate triangles when `phi` is exactly zero at
@@ -95,7 +109,8 @@ pub struct Surface {
     /// the triangle mesh in the reference configuration (counter-clockwise seen from outside)
     pub mesh: TriMesh,
     /// for vertex `v`, the edge of the extraction grid it lies on (`vertex_edges.len() ==
-    /// mesh.vertices.len()`)
+    /// mesh.vertices.len()` for marching cubes; empty for [`dual_contour`], whose vertices
+    /// lie inside cells)
     pub vertex_edges: Vec<EdgePoint>,
     /// for vertex `v`, the simulation-grid nodes and weights that move it: its grid edge when
     /// the surface was extracted on the simulation grid ([`extract_surface`]), its trilinear
