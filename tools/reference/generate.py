@@ -96,6 +96,8 @@ CASES = {
         mesh=dict(reference=dict(cells=[10, 12, 10], grading=1.5),
                   coarse=dict(cells=[5, 6, 5], grading=1.5)),
         substeps=8,
+        # our surface for a body with sharp edges (marching cubes bevels them)
+        scene_numerics=dict(surface_method="dual_contouring"),
     ),
     "ground": dict(
         description="Sphere of radius 0.3 whose lowest point starts 0.05 above the ground "
@@ -872,6 +874,9 @@ def scene_toml(name, case):
                   f"substeps = {case['scene_substeps']}"]
     lines += ["",
               "[model]", "effects = [" + ", ".join(f'"{e}"' for e in effects) + "]", ""]
+    if case.get("scene_numerics"):
+        lines += ["# our observed surface keeps the box's edges (docs/simulation.md, \"The observed surface\")",
+                  "[numerics]"] + [f'{k} = "{v}"' for k, v in case["scene_numerics"].items()] + [""]
     return "\n".join(lines)
 
 

@@ -270,7 +270,7 @@ fn gauss_newton_matrix_is_the_hessian_at_zero_residual() {
 
 /// Observations: every third vertex of the truth's deformed surface at frames 2, 5, 8.
 fn surface_observations(g: &Grid) -> Vec<(usize, Vec<ObservedPoint>)> {
-    let surface = extract_surface(&g.sdf);
+    let surface = g.surface().unwrap();
     let reference = trajectory(truth());
     (2..=STEPS)
         .step_by(3)

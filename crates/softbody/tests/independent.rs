@@ -3,15 +3,18 @@
 //! outputs in `tests/reference_values/independent`), used exactly as a user would, through
 //! `softbody fit` on the committed scene at its default resolution and default numerics (the
 //! incompatible element, the consistent Nitsche clamp, the surface from an SDF twice as fine;
-//! `docs/simulation.md`).
+//! `docs/simulation.md`); the block's scene asks for the dual-contouring surface, which keeps
+//! its edges.
 //!
 //! - with every true parameter, the rms distance of the cantilever's, the block's and the
 //!   bouncing sphere's observed points to our surface is at most 1.15 times the noise floor (the rms a perfect model would
 //!   reach);
-//! - a fit of Young's modulus and Poisson's ratio from a wrong start recovers the modulus
-//!   within 3%. (Poisson's ratio is not identifiable from this motion: the cost changes by
-//!   0.3% between nu = 0.07 and 0.48, and the fit's own standard error for it is about 0.05;
-//!   it is printed, not asserted.)
+//! - a fit of Young's modulus and Poisson's ratio from a wrong start recovers the cantilever's
+//!   modulus within 3% (its Poisson's ratio is not identifiable from this motion: the cost
+//!   changes by 0.3% between nu = 0.07 and 0.48, and the fit's own standard error for it is
+//!   about 0.05; it is printed, not asserted), and the block's modulus within 3% and its
+//!   Poisson's ratio within 0.03 (standard error 0.011; the block's lateral bulge under its
+//!   own weight shows nu).
 
 mod common;
 
@@ -44,7 +47,10 @@ fn scene(name: &str, tag: &str, start: Option<(f64, f64)>) -> PathBuf {
             .replace(&format!("poisson = {poisson}\n"), &format!("poisson = {nu}\n"));
         assert!(text.contains(&format!("young = {e:.1}\n")) && text.contains(&format!("poisson = {nu}\n")));
     }
-    assert!(!text.contains("[numerics]"));
+    // default numerics, but for the block's surface (a body with sharp edges)
+    let numerics = text.find("[numerics]").map(|i| text[i..].trim().to_string());
+    let block = "[numerics]\nsurface_method = \"dual_contouring\"";
+    assert!(numerics.is_none() || (name == "block" && numerics.as_deref() == Some(block)));
     common::write(&tmp("independent", tag), "scene.toml", &text)
 }
 
@@ -57,8 +63,9 @@ fn fit(name: &str, tag: &str, scene: &std::path::Path, extra: &[&str]) -> Value 
     json(&common::run_on("fit", scene, &obs, &out, &flags))
 }
 
-/// The rms of case `name` at its true parameters, against its noise floor.
-fn at_the_truth(name: &str) {
+/// The rms of case `name` at its true parameters, against its noise floor (returned as rms /
+/// floor).
+fn at_the_truth(name: &str) -> f64 {
     let floor = truth(name)["noise_floor"].as_f64().unwrap();
     let tag = format!("{name}-truth");
     let scene = scene(name, &tag, None);
@@ -70,6 +77,7 @@ fn at_the_truth(name: &str) {
         rms / floor
     );
     assert!(rms <= 1.15 * floor, "{name}: rms {rms} vs noise floor {floor}");
+    rms / floor
 }
 
 #[test]
@@ -77,11 +85,16 @@ fn cantilever_at_the_truth_is_within_the_noise() {
     at_the_truth("cantilever");
 }
 
-/// The block's box edges: the grid's own marching-cubes surface cuts them (1.54x the noise
-/// floor with `surface_subdivision = 1`, where the motion already matches the reference).
+/// The block's box edges: a marching-cubes surface bevels them (1.53x the noise floor on the
+/// grid itself, 1.09x from the SDF twice as fine); dual contouring (its scene's
+/// `surface_method`) keeps them (1.0001x): the motion itself matches the reference.
 #[test]
 fn block_at_the_truth_is_within_the_noise() {
-    at_the_truth("block");
+    let ratio = at_the_truth("block");
+    assert!(
+        ratio <= 1.03,
+        "block: {ratio}x the noise floor: are its edges bevelled?"
+    );
 }
 
 /// The sphere lands three times; its scene integrates each frame in two steps
@@ -91,17 +104,19 @@ fn ground_at_the_truth_is_within_the_noise() {
     at_the_truth("ground");
 }
 
-#[test]
-fn cantilever_fit_recovers_young_within_three_percent() {
-    let t = truth("cantilever");
+/// A Gauss-Newton fit of E and nu on case `name` from `start`: the fitted E, nu and the true
+/// ones.
+fn fit_young_and_poisson(name: &str, start: (f64, f64)) -> [f64; 4] {
+    let t = truth(name);
     let (young, poisson) = (
         t["parameters"]["young"].as_f64().unwrap(),
         t["parameters"]["poisson"].as_f64().unwrap(),
     );
-    let scene = scene("cantilever", "start", Some((1800.0, 0.25)));
+    let tag = format!("{name}-start");
+    let scene = scene(name, &tag, Some(start));
     let r = fit(
-        "cantilever",
-        "start",
+        name,
+        &tag,
         &scene,
         &[
             "--params",
@@ -115,10 +130,26 @@ fn cantilever_fit_recovers_young_within_three_percent() {
     let e = r["parameters"]["young"].as_f64().unwrap();
     let nu = r["parameters"]["poisson"].as_f64().unwrap();
     println!(
-        "cantilever fit: E {e:.1} (true {young}, {:+.2}%), nu {nu:.3} (true {poisson}, standard error {}), rms {}",
+        "{name} fit: E {e:.2} (true {young}, {:+.2}%), nu {nu:.4} (true {poisson}, standard error {}), rms {}",
         100.0 * (e / young - 1.0),
         r["standard_errors"]["poisson"],
         r["rms"]["final"]
     );
+    [e, nu, young, poisson]
+}
+
+#[test]
+fn cantilever_fit_recovers_young_within_three_percent() {
+    let [e, _, young, _] = fit_young_and_poisson("cantilever", (1800.0, 0.25));
     assert!((e / young - 1.0).abs() <= 0.03, "E {e} vs {young}");
+}
+
+/// The targets on the block (measured: E 100.48, nu 0.3286, standard error of nu
+/// 0.011; on the same reference run without noise the fit gives nu 0.3034, so most of the
+/// offset is this draw of the noise, not the model).
+#[test]
+fn block_fit_recovers_young_within_three_percent_and_poisson_within_003() {
+    let [e, nu, young, poisson] = fit_young_and_poisson("block", (90.0, 0.25));
+    assert!((e / young - 1.0).abs() <= 0.03, "E {e} vs {young}");
+    assert!((nu - poisson).abs() <= 0.03, "nu {nu} vs {poisson}");
 }

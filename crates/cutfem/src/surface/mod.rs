@@ -71,7 +71,7 @@ pub enum SurfaceMethod {
     #[default]
     MarchingCubes,
     /// dual contouring, one vertex per cut cell that keeps sharp edges and corners
-    /// ([`dual_contour`])
+    /// ([`dual_contour`]; `docs/simulation.md`, "The observed surface")
     DualContouring,
 }
 
