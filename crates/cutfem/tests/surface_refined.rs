@@ -79,10 +79,7 @@ fn a_finer_surface_sdf_follows_the_box_edges() {
     let mut last = f64::INFINITY;
     let mut coarse = 0.0;
     for s in [1, 2, 4] {
-        let grid = scene(s)
-            .grid()
-            .unwrap()
-            .with_surface_method(cutfem::surface::SurfaceMethod::MarchingCubes);
+        let grid = scene(s).grid().unwrap();
         assert_eq!(grid.surface_sdf.is_some(), s > 1);
         let (vert, cover) = rms_to_true_surface(&grid);
         println!("subdivision {s}: vertices off the box by rms {vert:.5}, box points to the nearest vertex {cover:.5} (h = {h})");
@@ -167,12 +164,12 @@ fn dual_contouring_keeps_the_box_edges_and_corners() {
     };
     let volume = size.iter().product::<f64>();
     for s in [1, 2] {
-        let mc = scene(s)
+        let mc = scene(s).grid().unwrap();
+        assert_eq!(mc.surface_method, SurfaceMethod::MarchingCubes, "the default");
+        let dc = scene(s)
             .grid()
             .unwrap()
-            .with_surface_method(SurfaceMethod::MarchingCubes);
-        let dc = scene(s).grid().unwrap();
-        assert_eq!(dc.surface_method, SurfaceMethod::DualContouring, "the default");
+            .with_surface_method(SurfaceMethod::DualContouring);
         let (mc_vert, _) = rms_to_true_surface(&mc);
         let (dc_vert, dc_cover) = rms_to_true_surface(&dc);
         let (mc_mesh, dc_mesh) = (mc.surface().unwrap().mesh, dc.surface().unwrap().mesh);
@@ -254,7 +251,13 @@ fn dual_contouring_of_a_sphere_is_as_close_as_marching_cubes() {
         .surface()
         .unwrap()
         .mesh;
-    let dc = scene.grid().unwrap().surface().unwrap().mesh;
+    let dc = scene
+        .grid()
+        .unwrap()
+        .with_surface_method(SurfaceMethod::DualContouring)
+        .surface()
+        .unwrap()
+        .mesh;
     let (mc_vol, dc_vol) = (
         enclosed_volume(&mc) / volume - 1.0,
         enclosed_volume(&dc) / volume - 1.0,
