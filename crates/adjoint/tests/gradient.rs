@@ -10,7 +10,6 @@ use cutfem::fem::collision::{ContactScheme, Ground};
 use cutfem::fem::element::Element;
 use cutfem::fem::{Aabb, Grid, Model, Simulation};
 use cutfem::shapes::Shape;
-use cutfem::surface::extract_surface;
 use gpumat::{Matrix, Vec3};
 
 const STEPS: usize = 8;

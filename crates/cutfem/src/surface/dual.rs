@@ -255,7 +255,7 @@ fn flattest_gradient(sdf: &SdfGrid, cell: [usize; 3], corner: usize, axis: usize
         let Some(f) = cell_values(sdf, c) else { continue };
         let xi: [f64; 3] = std::array::from_fn(|d| if d == axis { t } else { (a[d] - c[d]) as f64 });
         let bend = nonlinearity(&f);
-        if best.as_ref().is_none_or(|(b, _)| bend < *b) {
+        if best.as_ref().map_or(true, |(b, _)| bend < *b) {
             best = Some((bend, cell_gradient(&f, xi)));
         }
     }
