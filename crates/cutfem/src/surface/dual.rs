@@ -30,7 +30,7 @@
 //! The vertices are not on grid edges: [`Surface::vertex_edges`] is empty, and
 //! [`Surface::embedded_in`] gives each vertex the trilinear field of its simulation cell.
 
-use super::Surface;
+use super::{contourable, Surface};
 use crate::SdfGrid;
 use std::collections::HashMap;
 
@@ -119,11 +119,11 @@ pub(crate) fn qef_vertex(crossings: &[([f64; 3], [f64; 3])], lo: [f64; 3], h: f6
 /// embedding yet ([`Surface::vertex_nodes`] is empty: see [`Surface::embedded_in`]).
 /// Returns an empty surface when the grid has fewer than two nodes along some axis.
 pub fn dual_contour(sdf: &SdfGrid) -> Surface {
-    let [nx, ny, nz] = sdf.dims;
     let mut surface = Surface::default();
-    if nx < 2 || ny < 2 || nz < 2 || sdf.values.len() != nx * ny * nz {
+    if !contourable(sdf) {
         return surface;
     }
+    let [nx, ny, nz] = sdf.dims;
     let h = sdf.spacing;
     let o = sdf.origin;
     let node = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);

@@ -331,17 +331,23 @@ fn triangulate(
     face_diagonals.extend(used);
 }
 
+/// Whether `sdf` has at least one cell (two nodes along every axis) and a value per node.
+fn contourable(sdf: &SdfGrid) -> bool {
+    let [nx, ny, nz] = sdf.dims;
+    nx >= 2 && ny >= 2 && nz >= 2 && sdf.values.len() == nx * ny * nz
+}
+
 /// Extracts the zero level set of `sdf` as a triangle mesh with outward (counter-clockwise seen
 /// from outside, toward increasing `phi`) orientation; see the module docs for the method.
 ///
 /// Returns an empty surface when the grid has fewer than two nodes along some axis or no cell
 /// is cut.
 pub fn extract_surface(sdf: &SdfGrid) -> Surface {
-    let [nx, ny, nz] = sdf.dims;
     let mut surface = Surface::default();
-    if nx < 2 || ny < 2 || nz < 2 || sdf.values.len() != nx * ny * nz {
+    if !contourable(sdf) {
         return surface;
     }
+    let [nx, ny, nz] = sdf.dims;
     let h = sdf.spacing;
     let o = sdf.origin;
     let node = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);
