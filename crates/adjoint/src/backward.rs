@@ -82,11 +82,9 @@ pub fn step_adjoint(
     grad: &mut PhysicalGradient,
 ) {
     let model = &sim.model;
-    let (dt, theta) = (model.dt, model.theta);
-    let (a1, a2) = (model.damping_mass, model.damping_stiffness);
-    let cm = 1.0 / (theta * dt) + a1;
-    let cw = a2 - (1.0 - theta) * dt;
-    let cn = a2 + theta * dt;
+    let nm = model.newmark();
+    let (dt, theta) = (nm.dt, nm.theta);
+    let (cm, cw, cn) = (nm.cm, nm.cu, nm.ck);
     let k = sim.stiffness();
     let m = &sim.mass;
     let (u, v) = (&sim.u, &sim.v);
@@ -94,7 +92,7 @@ pub fn step_adjoint(
     // mass, damping, gravity
     let k_lam = Matrix::eval(k * lam);
     u_bar.assign_with(|ub| ub + m.ex().cwise_mul(lam.ex()) * cm + k_lam.ex() * cw);
-    v_bar.assign_with(|vb| vb + m.ex().cwise_mul(lam.ex()) * (1.0 / theta));
+    v_bar.assign_with(|vb| vb + m.ex().cwise_mul(lam.ex()) * nm.cv);
     let m_lam = Matrix::eval(m.ex().cwise_mul(lam.ex()));
     let lam_m_du = m_lam.ex().dot(u - u_next);
     let lam_m_v = m_lam.ex().dot(v.ex());

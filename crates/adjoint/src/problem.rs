@@ -267,7 +267,7 @@ impl Problem {
         let mut traj = traj.expect("stored");
         let tb = Instant::now();
         let n = self.sim.grid.dofs();
-        let (dt, theta) = (model.dt, model.theta);
+        let nm = model.newmark();
         let mut grad = PhysicalGradient::default();
         let frames = self.cost.frames();
         let mut cost_s = 0.0;
@@ -290,7 +290,7 @@ impl Problem {
         let mut lam: Matrix<Vec3<f64>> = Matrix::zeros(n, 1, 1);
         // the previous adjoint, for a linear extrapolation as the CG warm start
         let mut lam_prev: Option<Matrix<Vec3<f64>>> = None;
-        let c = 1.0 / (theta * dt);
+        let c = nm.cvel;
         for step in (0..last).rev() {
             let g = Matrix::eval(ub.ex() + vb.ex() * c);
             self.sim.u = traj.u[step].unpack();
@@ -309,7 +309,7 @@ impl Problem {
             ev.fallbacks += usize::from(fallback);
             let mut new_ub = cost_grad(self.cost.as_ref(), step, &self.sim.u)?;
             new_ub.assign_with(|u| u - vb.ex() * c);
-            let mut new_vb = Matrix::eval(vb.ex() * (-(1.0 - theta) / theta));
+            let mut new_vb = Matrix::eval(vb.ex() * -nm.cold);
             step_adjoint(
                 &self.sim,
                 &traj.u[step + 1].unpack(),

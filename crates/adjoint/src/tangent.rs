@@ -56,7 +56,7 @@ impl Problem {
         let model = self.model_at(x);
         let dofs = self.sim.grid.dofs();
         let frames = self.cost.frames();
-        let (dt, theta) = (model.dt, model.theta);
+        let dt = model.dt;
         let models: Vec<(Model, Model)> = dirs
             .iter()
             .map(|d| {
@@ -85,7 +85,7 @@ impl Problem {
                 .map_err(ProblemError::Diverged)?;
             add(&mut h, c);
         }
-        let c = 1.0 / (theta * dt);
+        let nm = model.newmark();
         let substeps = model.substeps;
         for t in 1..=self.integrator_steps() {
             let (u0, v0) = (self.sim.u.clone(), self.sim.v.clone());
@@ -117,8 +117,7 @@ impl Problem {
                 self.sim
                     .solve_newmark(&drs[k], &mut x)
                     .map_err(|e| ProblemError::Diverged(format!("tangent step {t}: {e}")))?;
-                let new_sv = Matrix::eval((x.ex() - su[k].ex()) * c - sv[k].ex() * ((1.0 - theta) / theta));
-                sv[k] = new_sv;
+                nm.update_velocity(&mut sv[k], &x, &su[k]);
                 su[k] = x;
             }
             self.sim.u = u1;

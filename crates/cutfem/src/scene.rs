@@ -128,11 +128,15 @@ pub enum ContactSchemeName {
 fn up() -> [f64; 3] {
     [0.0, 1.0, 0.0]
 }
+/// Default `[ground] stiffness` (the spring constant `k` per crossing).
+pub const DEFAULT_GROUND_STIFFNESS: f64 = 1.0e4;
+/// Default `[ground] softness` (the softmin sharpness `alpha`).
+pub const DEFAULT_GROUND_SOFTNESS: f64 = 100.0;
 fn ground_k() -> f64 {
-    1.0e4
+    DEFAULT_GROUND_STIFFNESS
 }
 fn ground_alpha() -> f64 {
-    100.0
+    DEFAULT_GROUND_SOFTNESS
 }
 
 /// `[[dirichlet]]`

@@ -15,6 +15,8 @@ pub mod tet;
 pub use assembly::{Assembler, Material};
 pub use collision::Ground;
 pub use grid::{Cell, Grid};
-pub use model::{Aabb, ExternalForce, Model, NitschePenalty, NitscheQuadrature, DEFAULT_NITSCHE_GAMMA};
+pub use model::{
+    Aabb, ExternalForce, Model, NewmarkCoefficients, NitschePenalty, NitscheQuadrature, DEFAULT_NITSCHE_GAMMA,
+};
 pub use sim::{NitscheFace, Simulation, StepInfo};
 pub use solver::{LinearSolver, Preconditioner, SolveInfo, SolverSettings};

@@ -160,6 +160,68 @@ pub struct Model {
     pub substeps: usize,
 }
 
+impl Model {
+    /// The coefficients of one Newmark-1 step of this model ([`NewmarkCoefficients`]).
+    pub fn newmark(&self) -> NewmarkCoefficients {
+        NewmarkCoefficients::new(self.dt, self.theta, self.damping_mass, self.damping_stiffness)
+    }
+}
+
+/// The coefficients of one Newmark-1 step with Rayleigh damping `D = a1 M + a2 K` (thesis eq.
+/// 2.6.2), the one home of these numbers for the forward step, its tangent and its adjoint:
+///
+/// `A = cm M + ck K`, `b = cm M u + cu K u + cv M v + dt f`, and the velocity update
+/// `v' = cvel (u' - u) - cold v`, with
+///
+/// `cm = 1/(theta dt) + a1`, `ck = a2 + theta dt`, `cu = a2 - (1 - theta) dt`, `cv = 1/theta`,
+/// `cvel = 1/(theta dt)`, `cold = (1 - theta)/theta`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NewmarkCoefficients {
+    /// time step
+    pub dt: f64,
+    /// Newmark theta
+    pub theta: f64,
+    /// `1/(theta dt) + a1`: the mass in `A` and `M u` in `b`
+    pub cm: f64,
+    /// `a2 + theta dt`: the stiffness in `A`
+    pub ck: f64,
+    /// `a2 - (1 - theta) dt`: `K u` in `b`
+    pub cu: f64,
+    /// `1/theta`: `M v` in `b`
+    pub cv: f64,
+    /// `1/(theta dt)`: `u' - u` in the velocity update
+    pub cvel: f64,
+    /// `(1 - theta)/theta`: the old velocity in the velocity update
+    pub cold: f64,
+}
+
+impl NewmarkCoefficients {
+    /// Those of time step `dt`, `theta` and Rayleigh damping `a1`, `a2`.
+    pub fn new(dt: f64, theta: f64, a1: f64, a2: f64) -> Self {
+        Self {
+            dt,
+            theta,
+            cm: 1.0 / (theta * dt) + a1,
+            ck: a2 + theta * dt,
+            cu: a2 - (1.0 - theta) * dt,
+            cv: 1.0 / theta,
+            cvel: 1.0 / (theta * dt),
+            cold: (1.0 - theta) / theta,
+        }
+    }
+
+    /// The velocity update in place: `v <- cvel (u_next - u) - cold v`.
+    pub fn update_velocity(
+        &self,
+        v: &mut gpumat::Matrix<Vec3<f64>>,
+        u_next: &gpumat::Matrix<Vec3<f64>>,
+        u: &gpumat::Matrix<Vec3<f64>>,
+    ) {
+        let (c, cold) = (self.cvel, self.cold);
+        v.assign_with(|v| (u_next.ex() - u.ex()) * c - v * cold);
+    }
+}
+
 /// The most integrator steps per frame (`[time] substeps`).
 pub const MAX_SUBSTEPS: usize = 1000;
 
@@ -352,5 +414,41 @@ impl Model {
     /// Lame coefficients `(lambda, mu)`.
     pub fn lame(&self) -> (f64, f64) {
         super::element::lame(self.young, self.poisson)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gpumat::Matrix;
+
+    /// The velocity update is the Newmark-1 relation `u' = u + dt ((1 - theta) v + theta v')`
+    /// (eq. 2.6.3), and the coefficients of `A` and `b` are those of eq. 2.6.2.
+    #[test]
+    fn newmark_coefficients_satisfy_the_newmark_relation() {
+        for (dt, theta, a1, a2) in [
+            (0.01, 0.5, 0.0, 0.0),
+            (0.003, 0.6, 0.4, 0.002),
+            (0.1, 0.99, 2.0, 0.1),
+        ] {
+            let c = NewmarkCoefficients::new(dt, theta, a1, a2);
+            assert!((c.cm - (c.cvel + a1)).abs() < 1e-12 * c.cm);
+            assert!((c.ck - (a2 + theta * dt)).abs() < 1e-15);
+            assert!((c.cu - (c.ck - dt)).abs() < 1e-12);
+            assert!((c.cv * theta - 1.0).abs() < 1e-15);
+            let u = Matrix::from_fn(3, 1, 1, |i, _, _| Vec3::new(i as f64, 0.5, -1.0));
+            let un = Matrix::from_fn(3, 1, 1, |i, _, _| Vec3::new(0.3 * i as f64, 0.7, -0.9));
+            let v0 = Matrix::from_fn(3, 1, 1, |i, _, _| Vec3::new(1.0, -2.0 * i as f64, 0.25));
+            let mut v = v0.clone();
+            c.update_velocity(&mut v, &un, &u);
+            for i in 0..3 {
+                let (a, b, old, new) = (u.get(i, 0, 0), un.get(i, 0, 0), v0.get(i, 0, 0), v.get(i, 0, 0));
+                let predicted = a + (old * (1.0 - theta) + new * theta) * dt;
+                assert!(
+                    (predicted - b).norm() < 1e-12,
+                    "dt {dt} theta {theta}: {predicted:?} vs {b:?}"
+                );
+            }
+        }
     }
 }

@@ -302,7 +302,7 @@ impl Simulation {
     /// solve and the velocity update (eq. 2.6.2-2.6.4).
     pub fn substep(&mut self) -> Result<StepInfo, Error> {
         let mut info = self.assemble_system_with(false);
-        let (dt, theta) = (self.model.dt, self.model.theta);
+        let dt = self.model.dt;
 
         let t3 = Instant::now();
         let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);
@@ -318,9 +318,7 @@ impl Simulation {
         info.solve_s = t3.elapsed().as_secs_f64();
 
         // v' = (u' - u)/(theta dt) - (1-theta)/theta v, then u = u'
-        let c = 1.0 / (theta * dt);
-        self.v
-            .assign_with(|v| (x.ex() - self.u.ex()) * c - v * ((1.0 - theta) / theta));
+        self.model.newmark().update_velocity(&mut self.v, &x, &self.u);
         self.u = x;
         self.steps += 1;
         Ok(info)

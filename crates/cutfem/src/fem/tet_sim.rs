@@ -263,7 +263,7 @@ impl TetSimulation {
     /// Advances one integrator step (the stage order of [`crate::fem::Simulation::substep`]).
     fn substep(&mut self) -> Result<StepInfo, Error> {
         let mut info = StepInfo::default();
-        let (dt, theta) = (self.model.dt, self.model.theta);
+        let dt = self.model.dt;
         let mut times = AssemblyTimes::default();
         self.assemble_into(&mut times);
         info.assembly_s = times.total();
@@ -289,9 +289,8 @@ impl TetSimulation {
         info.factor_s = si.factor_s;
         info.solve_s = t3.elapsed().as_secs_f64();
 
-        let c = 1.0 / (theta * dt);
-        self.v
-            .assign_with(|v| (x.ex() - self.u.ex()) * c - v * ((1.0 - theta) / theta));
+        // v' = (u' - u)/(theta dt) - (1-theta)/theta v, then u = u'
+        self.model.newmark().update_velocity(&mut self.v, &x, &self.u);
         self.u = x;
         self.steps += 1;
         Ok(info)

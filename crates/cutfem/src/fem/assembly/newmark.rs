@@ -29,16 +29,14 @@ pub(crate) struct Coefficients {
 impl Coefficients {
     /// Those of `model`.
     pub(crate) fn new(model: &Model) -> Self {
-        let (dt, theta) = (model.dt, model.theta);
-        let (a1, a2) = (model.damping_mass, model.damping_stiffness);
-        let cm = 1.0 / (theta * dt) + a1;
+        let c = model.newmark();
         Self {
-            cm,
-            ck: a2 + theta * dt,
-            cu: a2 - (1.0 - theta) * dt,
-            cv: 1.0 / theta,
-            dt,
-            off: Mat3::ZERO.scale(cm),
+            cm: c.cm,
+            ck: c.ck,
+            cu: c.cu,
+            cv: c.cv,
+            dt: c.dt,
+            off: Mat3::ZERO.scale(c.cm),
         }
     }
     /// `(cm M)_rr` for the lumped mass `m` of row `r`.
