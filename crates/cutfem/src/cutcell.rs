@@ -147,6 +147,7 @@ pub use refine::{
     SUBDIVISIONS,
 };
 
+use crate::v3::{cross, dot, norm, sub};
 use crate::SdfGrid;
 use rayon::prelude::*;
 
@@ -420,26 +421,6 @@ impl Accum {
 /// Corner `c` of the unit cube.
 fn corner(c: usize) -> P3 {
     [(c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64]
-}
-
-fn sub(a: P3, b: P3) -> P3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: P3, b: P3) -> P3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: P3, b: P3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn norm(a: P3) -> f64 {
-    dot(a, a).sqrt()
 }
 
 /// The 8 trilinear basis functions at a point of the unit cube.

@@ -33,6 +33,7 @@ pub mod scene;
 pub mod sdf;
 pub mod shapes;
 pub mod surface;
+pub mod v3;
 
 pub use error::Error;
 pub use mesh::TriMesh;

@@ -15,6 +15,7 @@
 //! In a scene file a shape is written as a TOML inline table tagged by `kind`:
 //! `shape = { kind = "box", center = [0, 1, 0], size = [1.29, 0.4, 0.8] }`.
 
+use crate::v3::{dot, norm, sub};
 use crate::{Error, SdfGrid};
 use serde::Deserialize;
 use std::f64::consts::PI;
@@ -57,16 +58,6 @@ pub enum Shape {
         /// radius
         radius: f64,
     },
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
 }
 
 impl Shape {

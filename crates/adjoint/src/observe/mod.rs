@@ -55,6 +55,7 @@ pub use raster::{render_depth, DepthImage};
 pub use rng::SplitMix64;
 
 use crate::observations::{Observations, ObservedPoint};
+pub(crate) use cutfem::v3::{add, cross, dot, normalize, scale, sub};
 use cutfem::TriMesh;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_6, TAU};
 
@@ -222,34 +223,6 @@ pub fn record(obs: &mut Observations, frame: usize, per_camera: &[Vec<[f64; 3]>]
                 },
             );
         }
-    }
-}
-
-pub(crate) fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-pub(crate) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    a.map(|x| x * s)
-}
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-pub(crate) fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let n = dot(a, a).sqrt();
-    if n > 0.0 {
-        scale(a, 1.0 / n)
-    } else {
-        a
     }
 }
 

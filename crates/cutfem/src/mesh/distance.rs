@@ -23,36 +23,7 @@
 /// Maximum number of triangles in a BVH leaf.
 pub const LEAF_SIZE: usize = 4;
 
-pub(crate) type V3 = [f64; 3];
-
-#[inline]
-pub(crate) fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-pub(crate) fn add(a: V3, b: V3) -> V3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-#[inline]
-pub(crate) fn scale(a: V3, s: f64) -> V3 {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-#[inline]
-pub(crate) fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline]
-pub(crate) fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-#[inline]
-pub(crate) fn norm(a: V3) -> f64 {
-    dot(a, a).sqrt()
-}
+pub(crate) use crate::v3::{add, cross, dot, norm, scale, sub, V3};
 
 /// Closest point to `p` on the segment `[a, b]`.
 pub fn closest_point_on_segment(p: V3, a: V3, b: V3) -> V3 {

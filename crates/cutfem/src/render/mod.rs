@@ -23,36 +23,11 @@ mod image;
 pub use font::{glyph, GLYPH_HEIGHT, GLYPH_WIDTH};
 pub use image::{Image, BORDER_COLOR};
 
+pub use crate::v3::{cross, dot, normalize, sub};
 use crate::TriMesh;
 
 /// Distance of the near plane from the eye, relative to the eye-target distance.
 const NEAR: f64 = 1e-3;
-
-/// `a - b`.
-pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-/// `a . b`.
-pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-/// `a x b`.
-pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-/// `a / |a|` (`a` itself when zero).
-pub fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let n = dot(a, a).sqrt();
-    if n > 0.0 {
-        a.map(|x| x / n)
-    } else {
-        a
-    }
-}
 
 /// A pinhole camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
