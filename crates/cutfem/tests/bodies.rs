@@ -70,23 +70,7 @@ impl Rng {
     }
 }
 
-pub(crate) type V = [f64; 3];
-pub(crate) fn sub(a: V, b: V) -> V {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-pub(crate) fn dot(a: V, b: V) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-pub(crate) fn cross(a: V, b: V) -> V {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-pub(crate) fn norm(a: V) -> f64 {
-    dot(a, a).sqrt()
-}
+pub(crate) use cutfem::v3::{cross, dot, norm, sub, V3 as V};
 
 /// Reference point-triangle distance, independent of the library's Ericson implementation:
 /// projection onto the plane when it falls inside (same-side tests), else the nearest edge.

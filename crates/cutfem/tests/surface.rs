@@ -45,19 +45,7 @@ fn torus_sdf(h: f64, major: f64, minor: f64) -> SdfGrid {
     grid([-e, -minor - 0.15, -e], [e, minor + 0.15, e], h, dist)
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
+use cutfem::v3::{cross, norm, sub};
 
 /// Checks that every directed edge occurs exactly once and its reverse exactly once (closed,
 /// consistently oriented 2-manifold edges). Returns the number of undirected edges.
