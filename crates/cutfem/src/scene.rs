@@ -22,7 +22,7 @@ mod numerics;
 pub use check::{check_steps, dedupe_prefixes, non_finite, quote, shorten_quotes, MAX_QUOTE, MAX_STEPS};
 pub use extensions::{Extension, SECTIONS};
 use mesh_cache::{mesh_cache_get, mesh_cache_put};
-pub use numerics::{DiffusionName, NumericsSection, DEFAULT_SURFACE_SUBDIVISION, MAX_SURFACE_SUBDIVISION};
+pub use numerics::{NumericsSection, DEFAULT_SURFACE_SUBDIVISION, MAX_SURFACE_SUBDIVISION};
 
 use crate::error::Error;
 use crate::fem::{Aabb, Ground, Model};

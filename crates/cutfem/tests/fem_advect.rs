@@ -3,7 +3,9 @@
 //!
 //! Run with `--nocapture` to see the measured errors.
 
-use cutfem::fem::advect::{advect, advect_with, AdvectSettings, Diffusion, Extension, DIFFUSION_DISTANCE};
+use cutfem::fem::advect::{
+    advect, advect_with, AdvectSettings, Diffusion, DisplacementExtension, DIFFUSION_DISTANCE,
+};
 use cutfem::fem::Grid;
 use cutfem::SdfGrid;
 use gpumat::{cg, Axes, CgParams, Mat3, Matrix, Vec3};
@@ -149,7 +151,7 @@ fn empty_node_count_of_the_benchmark_cuboid() {
         clipped.empty_count()
     );
     assert!(clipped.empty_count() < band.empty_count());
-    let linear = Diffusion::with_distance(&grid, DIFFUSION_DISTANCE, Extension::Linear).unwrap();
+    let linear = Diffusion::with_distance(&grid, DIFFUSION_DISTANCE, DisplacementExtension::Linear).unwrap();
     assert_eq!(linear.nodes(), band.nodes());
 }
 
@@ -157,7 +159,7 @@ fn empty_node_count_of_the_benchmark_cuboid() {
 #[test]
 fn band_is_the_l1_neighbourhood_of_the_active_nodes() {
     let grid = sphere_grid([0.02, -0.01, 0.03], 0.3, 0.1, 7);
-    let band = Diffusion::with_distance(&grid, 4, Extension::Harmonic).unwrap();
+    let band = Diffusion::with_distance(&grid, 4, DisplacementExtension::Harmonic).unwrap();
     let s = &grid.sdf;
     let [nx, ny, nz] = s.dims;
     let active: Vec<[i64; 3]> = grid
@@ -191,7 +193,7 @@ fn band_is_the_l1_neighbourhood_of_the_active_nodes() {
 fn both_extensions_reproduce_constants() {
     let grid = sphere_grid([0.013, -0.021, 0.007], 0.3, 0.05, 7);
     let c = Vec3::new(0.3, -1.2, 0.05);
-    for ext in [Extension::Harmonic, Extension::Linear] {
+    for ext in [DisplacementExtension::Harmonic, DisplacementExtension::Linear] {
         let mut band = Diffusion::with_distance(&grid, DIFFUSION_DISTANCE, ext).unwrap();
         band.params.tolerance = 1e-12;
         let out = band.diffuse(&active_field(&grid, |_| c)).unwrap();
@@ -213,7 +215,8 @@ fn linear_fields() {
     let lin = |x: Vec3<f64>| a * x + c;
     let u = active_field(&grid, lin);
 
-    let mut band = Diffusion::with_distance(&grid, DIFFUSION_DISTANCE, Extension::Linear).unwrap();
+    let mut band =
+        Diffusion::with_distance(&grid, DIFFUSION_DISTANCE, DisplacementExtension::Linear).unwrap();
     band.params.tolerance = 1e-12;
     let (out, info) = band.diffuse_info(&u).unwrap();
     let pos = band_positions(&grid, &band);
@@ -287,7 +290,7 @@ fn batched_solve_equals_three_single_solves() {
     let grid = sphere_grid([0.013, -0.021, 0.007], 0.4, 0.05, 7);
     let field = |x: Vec3<f64>| Vec3::new(0.1 * (7.0 * x.x).sin(), x.y * x.y - 0.3 * x.z, 1e-3 * x.z);
     let u = active_field(&grid, field);
-    for ext in [Extension::Harmonic, Extension::Linear] {
+    for ext in [DisplacementExtension::Harmonic, DisplacementExtension::Linear] {
         let band = Diffusion::with_distance(&grid, DIFFUSION_DISTANCE, ext).unwrap();
         let (out, info) = band.diffuse_info(&u).unwrap();
         assert_eq!(band.last_info().as_ref(), Some(&info));
@@ -404,7 +407,7 @@ fn rotation_by_30_degrees_preserves_the_volume() {
     let grid = box_grid(center, size, h, 7);
     let c = Vec3::from_array(center);
     let (count0, smooth0) = (count_volume(&grid.sdf), smooth_volume(&grid.sdf));
-    for ext in [Extension::Harmonic, Extension::Linear] {
+    for ext in [DisplacementExtension::Harmonic, DisplacementExtension::Linear] {
         let band = Diffusion::with_distance(&grid, DIFFUSION_DISTANCE, ext).unwrap();
         for (name, r) in [
             ("z", rot_z(30.0)),
@@ -442,7 +445,7 @@ fn rotation_by_30_degrees_preserves_the_volume() {
                 (smooth - 1.0).abs() < 0.04,
                 "{ext:?} {name}: smoothed volume ratio {smooth}"
             );
-            if ext == Extension::Linear {
+            if ext == DisplacementExtension::Linear {
                 assert!(fmax < 0.1 * h, "{name}: face error {} h", fmax / h);
             }
         }

@@ -1,10 +1,9 @@
 //! `softbody simulate SCENE [--out DIR] [--json]`: the forward run.
 
 use crate::progress;
-use cutfem::fem::advect::{advect, Diffusion, Extension, DIFFUSION_DISTANCE};
+use cutfem::fem::advect::{advect, Diffusion, DIFFUSION_DISTANCE};
 use cutfem::fem::{grid::INACTIVE, Grid, Simulation};
 use cutfem::render::{render, Camera, Coloring, Ground, Image, RenderItem, RenderOptions};
-use cutfem::scene::DiffusionName;
 use cutfem::scene::Scene;
 use cutfem::sdf::NpyDtype;
 use cutfem::surface::{extract_surface, write_ply, Surface};
@@ -118,10 +117,7 @@ pub fn run(a: Args) -> Result<(), String> {
         .grid
         .surface()
         .map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    let extension = match scene.numerics.diffusion {
-        DiffusionName::Harmonic => Extension::Harmonic,
-        DiffusionName::Linear => Extension::Linear,
-    };
+    let extension = scene.numerics.diffusion;
     let band =
         Diffusion::with_distance(&sim.grid, DIFFUSION_DISTANCE, extension).map_err(|e| e.to_string())?;
     let mut advected = None;

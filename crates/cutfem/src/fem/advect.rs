@@ -33,7 +33,7 @@
 //! by up to 0.17-0.46 cells (rms 0.05-0.10) against 0.03-0.06 (rms 0.007) with exact
 //! displacements (tests/fem_advect.rs).
 //!
-//! [`Extension::Linear`] (not in the thesis) replaces the Laplacian by the least squares of
+//! [`DisplacementExtension::Linear`] (not in the thesis) replaces the Laplacian by the least squares of
 //! the second differences along the axes, `min sum_{q, e} (u(q - e) - 2 u(q) + u(q + e))^2`
 //! over the triples inside `A u B` that touch `B`: the normal equations `D^T D u_B = -D^T D_A
 //! u_A` form a symmetric positive definite 13-point system, and since every second difference
@@ -75,7 +75,7 @@
 
 mod diffusion;
 
-pub use diffusion::{Diffusion, Extension, DIFFUSION_DISTANCE};
+pub use diffusion::{Diffusion, DisplacementExtension, DIFFUSION_DISTANCE};
 
 use super::grid::Grid;
 use crate::error::Error;

@@ -27,7 +27,7 @@ pub struct NumericsSection {
     /// extension of the displacements into empty nodes before advection: "harmonic" (the
     /// thesis' Poisson diffusion) or "linear" (reproduces linear fields exactly)
     #[serde(default)]
-    pub diffusion: DiffusionName,
+    pub diffusion: crate::fem::advect::DisplacementExtension,
     /// CG preconditioner of the step's linear solve: "block_ic0" (default), "block_jacobi" (the
     /// thesis') or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
@@ -51,16 +51,6 @@ pub struct NumericsSection {
 /// Largest `[numerics].surface_subdivision`.
 pub const MAX_SURFACE_SUBDIVISION: usize = 8;
 
-/// `[numerics].diffusion`
-#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-pub enum DiffusionName {
-    /// the thesis' 7-point Poisson diffusion
-    #[default]
-    Harmonic,
-    /// second-difference minimization, exact for linear fields
-    Linear,
-}
 fn cg_tol() -> f64 {
     crate::fem::SolverSettings::default().cg.tolerance
 }
@@ -81,7 +71,7 @@ impl Default for NumericsSection {
             nitsche_gamma: None,
             cg_tolerance: cg_tol(),
             cg_max_iterations: cg_max(),
-            diffusion: DiffusionName::default(),
+            diffusion: Default::default(),
             preconditioner: crate::fem::Preconditioner::default(),
             element: crate::fem::element::Element::default(),
             surface_subdivision: surface_subdivision(),

@@ -12,9 +12,11 @@ use std::sync::Mutex;
 /// node are diffused into (sec. 4.4.5).
 pub const DIFFUSION_DISTANCE: usize = 5;
 
-/// How the displacement is extended into the empty nodes.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Extension {
+/// How the displacement is extended into the empty nodes (`[numerics] diffusion`:
+/// "harmonic" or "linear").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DisplacementExtension {
     /// The thesis: the 7-point Poisson equation `Delta u = 0` (graph Laplacian) with Neumann
     /// conditions at the band's edge. Reproduces constants; bends linear fields towards a
     /// constant in the direction normal to the band.
@@ -48,7 +50,7 @@ pub struct Diffusion {
     /// band distance used to build the band
     distance: usize,
     /// the extension
-    extension: Extension,
+    extension: DisplacementExtension,
     /// grid node of each slot
     nodes: Vec<usize>,
     /// slot of each grid node ([`INACTIVE`] outside the band)
@@ -191,15 +193,19 @@ impl RowContext<'_> {
 }
 
 impl Diffusion {
-    /// The band and system of the thesis: [`DIFFUSION_DISTANCE`] = 5, [`Extension::Harmonic`].
+    /// The band and system of the thesis: [`DIFFUSION_DISTANCE`] = 5, [`DisplacementExtension::Harmonic`].
     pub fn new(grid: &Grid) -> Result<Self, Error> {
-        Self::with_distance(grid, DIFFUSION_DISTANCE, Extension::Harmonic)
+        Self::with_distance(grid, DIFFUSION_DISTANCE, DisplacementExtension::Harmonic)
     }
 
     /// The band of empty nodes within l1 distance `distance` (in nodes, measured inside the
     /// grid) of an active node, and its system. `distance = 0` gives an empty band (the
     /// active nodes only).
-    pub fn with_distance(grid: &Grid, distance: usize, extension: Extension) -> Result<Self, Error> {
+    pub fn with_distance(
+        grid: &Grid,
+        distance: usize,
+        extension: DisplacementExtension,
+    ) -> Result<Self, Error> {
         let dims = grid.sdf.dims;
         let total = grid.sdf.node_count();
         if grid.node_dofs.len() != total {
@@ -257,8 +263,8 @@ impl Diffusion {
             .into_par_iter()
             .with_min_len(256)
             .map(|r| match extension {
-                Extension::Harmonic => ctx.harmonic_row(dofs + r),
-                Extension::Linear => ctx.linear_row(dofs + r),
+                DisplacementExtension::Harmonic => ctx.harmonic_row(dofs + r),
+                DisplacementExtension::Linear => ctx.linear_row(dofs + r),
             })
             .collect();
         let mut row_ptr = Vec::with_capacity(m + 1);
@@ -325,7 +331,7 @@ impl Diffusion {
         self.distance
     }
     /// The extension this system was built with.
-    pub fn extension(&self) -> Extension {
+    pub fn extension(&self) -> DisplacementExtension {
         self.extension
     }
     /// Node counts of the reference grid the band was built on.
@@ -362,7 +368,7 @@ impl Diffusion {
     }
 
     /// The right-hand side `b` (`empty x 1 x 3`, batch `c` = coordinate `c`): the couplings
-    /// to the active nodes (for [`Extension::Harmonic`], the sum of the active neighbours'
+    /// to the active nodes (for [`DisplacementExtension::Harmonic`], the sum of the active neighbours'
     /// displacements).
     pub fn rhs(&self, u_active: &Matrix<Vec3<f64>>) -> Result<Matrix<f64>, Error> {
         self.check(u_active)?;
