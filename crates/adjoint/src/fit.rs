@@ -45,10 +45,12 @@ pub fn scene_model(scene: &Scene, grid: &Grid) -> Result<Model, String> {
     Ok(model)
 }
 
-/// The simulation of a scene (its grid, model and solver settings).
+/// The simulation of a scene (its grid, model and solver settings): the one place where every
+/// command (`simulate`, `observe`, `fit`, `gradcheck`, `diagnose`, the synthetic data) builds
+/// it, `[numerics]` included. Errors name the scene file.
 pub fn scene_simulation(scene: &Scene) -> Result<Simulation, String> {
     let grid = scene.grid().map_err(|e| e.to_string())?;
-    let model = scene_model(scene, &grid)?;
+    let model = scene_model(scene, &grid).map_err(|e| format!("{}: {e}", scene.path.display()))?;
     // a model that cannot be simulated names the scene and the key
     let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", scene.path.display()))?;
     sim.solver = solver_settings(scene, sim.solver);

@@ -15,7 +15,6 @@ use crate::progress;
 use crate::simulate::{default_out, deformed_surface};
 use adjoint::observations::Observations;
 use adjoint::observe::{observe_mesh, place_cameras, record, render_depth, Camera, RigParams};
-use cutfem::fem::Simulation;
 use cutfem::render::{viridis, Image};
 use cutfem::scene::Scene;
 use cutfem::TriMesh;
@@ -197,12 +196,8 @@ pub fn run(a: Args) -> Result<(), String> {
     targets.extend(a.preview.clone());
     let files = crate::out_dir::OutFiles::begin(&targets)?;
 
-    let grid = scene.grid().map_err(|e| e.to_string())?;
     // the scene's model with its model-level effects (e.g. `wind`)
-    let model =
-        adjoint::fit::scene_model(&scene, &grid).map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    sim.solver = adjoint::fit::solver_settings(&scene, sim.solver);
+    let mut sim = adjoint::fit::scene_simulation(&scene)?;
     let surface = sim
         .grid
         .surface()

@@ -2,7 +2,7 @@
 
 use crate::progress;
 use cutfem::fem::advect::{advect, Diffusion, DIFFUSION_DISTANCE};
-use cutfem::fem::{grid::INACTIVE, Grid, Simulation};
+use cutfem::fem::{grid::INACTIVE, Grid};
 use cutfem::render::{render, Camera, Coloring, Ground, Image, RenderItem, RenderOptions};
 use cutfem::scene::Scene;
 use cutfem::sdf::NpyDtype;
@@ -107,12 +107,8 @@ pub fn run(a: Args) -> Result<(), String> {
     let frames_dir = out.join("frames");
     std::fs::create_dir_all(&frames_dir).map_err(|e| format!("{}: {e}", frames_dir.display()))?;
 
-    let grid = scene.grid().map_err(|e| e.to_string())?;
     // the scene's model with its model-level effects (e.g. `wind`)
-    let model =
-        adjoint::fit::scene_model(&scene, &grid).map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    sim.solver = adjoint::fit::solver_settings(&scene, sim.solver);
+    let mut sim = adjoint::fit::scene_simulation(&scene)?;
     let surface = sim
         .grid
         .surface()
