@@ -115,8 +115,9 @@ pub(crate) fn qef_vertex(crossings: &[([f64; 3], [f64; 3])], lo: [f64; 3], h: f6
 }
 
 /// The zero level set of `sdf` by dual contouring (module docs), counter-clockwise seen from
-/// outside. Vertices carry no grid edge ([`Surface::vertex_edges`] is empty) and no
-/// embedding yet ([`Surface::vertex_nodes`] is empty: see [`Surface::embedded_in`]).
+/// outside. Vertices carry no grid edge ([`Surface::vertex_edges`] is empty); each is embedded
+/// in its own cell of `sdf`'s grid ([`Surface::vertex_nodes`]; re-embed with
+/// [`Surface::embedded_in`] for a simulation grid whose empty nodes must not move it).
 /// Returns an empty surface when the grid has fewer than two nodes along some axis.
 pub fn dual_contour(sdf: &SdfGrid) -> Surface {
     let mut surface = Surface::default();
@@ -169,6 +170,9 @@ pub fn dual_contour(sdf: &SdfGrid) -> Surface {
                 let x = qef_vertex(&crossings, lo, h);
                 cell_vertex.insert(node(i, j, k), surface.mesh.vertices.len() as u32);
                 surface.mesh.vertices.push(x);
+                // inside its cell, so inside the grid
+                let own = super::embed(sdf, x, |_| true).expect("a vertex lies in its cell");
+                surface.vertex_nodes.push(own);
             }
         }
     }
@@ -331,6 +335,28 @@ mod tests {
         let x = qef_vertex(&cr, [-1.0; 3], 3.0);
         let off = |p: [f64; 3]| n[0] * p[0] + n[2] * p[2];
         assert!((off(x) - off(cr[0].0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_standalone_surface_moves_with_a_linear_field_exactly() {
+        let sdf = SdfGrid::from_fn([-0.5, -0.5, -0.5], 0.1, [11, 11, 11], |p| {
+            (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 0.31
+        });
+        let s = dual_contour(&sdf);
+        assert!(!s.mesh.faces.is_empty());
+        assert_eq!(s.vertex_nodes.len(), s.mesh.vertices.len());
+        let node = |n: usize| {
+            let [nx, ny, _] = sdf.dims;
+            let ijk = [n % nx, (n / nx) % ny, n / (nx * ny)];
+            [0, 1, 2].map(|d| sdf.origin[d] + sdf.spacing * ijk[d] as f64)
+        };
+        let lin = |x: [f64; 3]| [0.2 * x[1] + 0.01, -0.1 * x[0], 0.3 * x[2]];
+        let moved = s.deformed(|n| lin(node(n)));
+        for (p, x) in moved.vertices.iter().zip(&s.mesh.vertices) {
+            for d in 0..3 {
+                assert!((p[d] - x[d] - lin(*x)[d]).abs() < 1e-12);
+            }
+        }
     }
 
     #[test]
