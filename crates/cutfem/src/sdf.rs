@@ -199,7 +199,7 @@ impl SdfGrid {
     }
 
     /// The 8 corner values of cell `c`, indexed `a + 2 b + 4 c` for offsets `(a, b, c)`.
-    fn corners(&self, c: [usize; 3]) -> [f64; 8] {
+    pub(crate) fn corners(&self, c: [usize; 3]) -> [f64; 8] {
         let mut v = [0.0; 8];
         for (n, out) in v.iter_mut().enumerate() {
             *out = self.value(c[0] + (n & 1), c[1] + ((n >> 1) & 1), c[2] + (n >> 2));
@@ -223,23 +223,7 @@ impl SdfGrid {
     /// outside the grid's box.
     pub fn gradient(&self, p: [f64; 3]) -> Option<[f64; 3]> {
         let (c, f) = self.locate(p)?;
-        let v = self.corners(c);
-        let w = |s: f64, bit: usize| if bit == 1 { s } else { 1.0 - s };
-        let mut g = [0.0; 3];
-        for (n, &val) in v.iter().enumerate() {
-            let bits = [n & 1, (n >> 1) & 1, n >> 2];
-            for a in 0..3 {
-                let sign = if bits[a] == 1 { 1.0 } else { -1.0 };
-                let mut weight = sign;
-                for b in 0..3 {
-                    if b != a {
-                        weight *= w(f[b], bits[b]);
-                    }
-                }
-                g[a] += weight * val;
-            }
-        }
-        Some(g.map(|x| x / self.spacing))
+        Some(trilinear_gradient(&self.corners(c), f).map(|x| x / self.spacing))
     }
 
     /// Number of inside nodes (value `< 0`).
@@ -322,4 +306,25 @@ impl SdfGrid {
         }
         Ok(())
     }
+}
+
+/// The gradient of the trilinear interpolant of corner values `v` (indexed `a + 2 b + 4 c`) at
+/// unit-cube point `f`, in units of the values per cell.
+pub(crate) fn trilinear_gradient(v: &[f64; 8], f: [f64; 3]) -> [f64; 3] {
+    let w = |s: f64, bit: usize| if bit == 1 { s } else { 1.0 - s };
+    let mut g = [0.0; 3];
+    for (n, &val) in v.iter().enumerate() {
+        let bits = [n & 1, (n >> 1) & 1, n >> 2];
+        for a in 0..3 {
+            let sign = if bits[a] == 1 { 1.0 } else { -1.0 };
+            let mut weight = sign;
+            for b in 0..3 {
+                if b != a {
+                    weight *= w(f[b], bits[b]);
+                }
+            }
+            g[a] += weight * val;
+        }
+    }
+    g
 }

@@ -143,19 +143,6 @@ fn the_subdivision_is_checked() {
     }
 }
 
-/// Signed volume enclosed by an oriented closed mesh (divergence theorem).
-fn enclosed_volume(m: &cutfem::TriMesh) -> f64 {
-    m.faces
-        .iter()
-        .map(|f| {
-            let [a, b, c] = f.map(|i| m.vertices[i as usize]);
-            (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-                + a[2] * (b[0] * c[1] - b[1] * c[0]))
-                / 6.0
-        })
-        .sum()
-}
-
 #[test]
 fn dual_contouring_keeps_the_box_edges_and_corners() {
     use cutfem::surface::SurfaceMethod;
@@ -173,7 +160,7 @@ fn dual_contouring_keeps_the_box_edges_and_corners() {
         let (mc_vert, _) = rms_to_true_surface(&mc);
         let (dc_vert, dc_cover) = rms_to_true_surface(&dc);
         let (mc_mesh, dc_mesh) = (mc.surface().unwrap().mesh, dc.surface().unwrap().mesh);
-        let (mc_vol, dc_vol) = (enclosed_volume(&mc_mesh), enclosed_volume(&dc_mesh));
+        let (mc_vol, dc_vol) = (mc_mesh.signed_volume(), dc_mesh.signed_volume());
         // the corners: distance from each true corner to the nearest vertex of each mesh
         let corner_gap = |m: &cutfem::TriMesh| {
             (0..8)
@@ -259,8 +246,8 @@ fn dual_contouring_of_a_sphere_is_as_close_as_marching_cubes() {
         .unwrap()
         .mesh;
     let (mc_vol, dc_vol) = (
-        enclosed_volume(&mc) / volume - 1.0,
-        enclosed_volume(&dc) / volume - 1.0,
+        mc.signed_volume() / volume - 1.0,
+        dc.signed_volume() / volume - 1.0,
     );
     println!(
         "sphere: vertices and centroids off by rms {:.2e} / {:.2e}, volume error {mc_vol:.2e} / {dc_vol:.2e} \

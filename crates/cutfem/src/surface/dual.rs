@@ -31,6 +31,8 @@
 //! [`Surface::embedded_in`] gives each vertex the trilinear field of its simulation cell.
 
 use super::{contourable, Surface};
+use crate::sdf::trilinear_gradient;
+use crate::v3::{dot, sub};
 use crate::SdfGrid;
 use std::collections::HashMap;
 
@@ -222,14 +224,8 @@ pub fn dual_contour(sdf: &SdfGrid) -> Surface {
 
 /// The corner values of cell `c` (first node), `None` when it is not a cell of the grid.
 fn cell_values(sdf: &SdfGrid, c: [i64; 3]) -> Option<[f64; 8]> {
-    let [nx, ny, nz] = sdf.dims.map(|n| n as i64);
-    if c[0] < 0 || c[1] < 0 || c[2] < 0 || c[0] + 1 >= nx || c[1] + 1 >= ny || c[2] + 1 >= nz {
-        return None;
-    }
-    Some(std::array::from_fn(|q| {
-        let [a, b, d] = [0, 1, 2].map(|e| (c[e] + (q >> e & 1) as i64) as usize);
-        sdf.values[a + sdf.dims[0] * (b + sdf.dims[1] * d)]
-    }))
+    let inside = (0..3).all(|d| c[d] >= 0 && c[d] + 1 < sdf.dims[d] as i64);
+    inside.then(|| sdf.corners(c.map(|x| x as usize)))
 }
 
 /// How far the trilinear interpolant of corner values `f` is from a linear function: the sum
@@ -260,36 +256,17 @@ fn flattest_gradient(sdf: &SdfGrid, cell: [usize; 3], corner: usize, axis: usize
         let xi: [f64; 3] = std::array::from_fn(|d| if d == axis { t } else { (a[d] - c[d]) as f64 });
         let bend = nonlinearity(&f);
         if best.as_ref().map_or(true, |(b, _)| bend < *b) {
-            best = Some((bend, cell_gradient(&f, xi)));
+            best = Some((bend, trilinear_gradient(&f, xi)));
         }
     }
     best.map_or([0.0; 3], |(_, g)| g)
 }
 
-/// The gradient of the trilinear interpolant of the corner values `f` at unit-cube point `xi`
-/// (in units of `phi` per cell; only its direction is used).
-fn cell_gradient(f: &[f64; 8], xi: [f64; 3]) -> [f64; 3] {
-    let mut g = [0.0; 3];
-    for (c, &v) in f.iter().enumerate() {
-        for (a, ga) in g.iter_mut().enumerate() {
-            let mut w = if c >> a & 1 == 1 { 1.0 } else { -1.0 };
-            for b in 0..3 {
-                if b != a {
-                    w *= if c >> b & 1 == 1 { xi[b] } else { 1.0 - xi[b] };
-                }
-            }
-            *ga += w * v;
-        }
-    }
-    g
-}
-
 /// Splits the quad `q` (counter-clockwise) along its shorter diagonal.
 fn push_quad(x: &[[f64; 3]], q: [u32; 4], faces: &mut Vec<[u32; 3]>) {
     let d2 = |a: u32, b: u32| {
-        (0..3)
-            .map(|d| (x[a as usize][d] - x[b as usize][d]).powi(2))
-            .sum::<f64>()
+        let e = sub(x[a as usize], x[b as usize]);
+        dot(e, e)
     };
     if d2(q[0], q[2]) <= d2(q[1], q[3]) {
         faces.push([q[0], q[1], q[2]]);
