@@ -497,9 +497,15 @@ fn png_tile_and_label() {
     assert_eq!((tiled.width, tiled.height), (2 + 2 * 66, 2 + 2 * 50));
     assert_eq!(tiled.pixel(0, 0), render::BORDER_COLOR);
     assert_eq!(tiled.pixel(2 + 66 + 10, 2 + 50 + 10), [255, 255, 255]); // the empty cell
-    assert_eq!(Image::text_size("frame 12", 1), (47, 7));
-    // the label's text pixels are white on a dark box
+                                                                        // the label's text is white on a dark box as wide as the text and its 2-pixel margins
+    let (w, h) = Image::text_size("frame 0", 1);
+    assert_eq!(h, render::GLYPH_HEIGHT);
+    assert!(w > 20, "{w}");
     assert_eq!(frames[0].pixel(0, 0), [30, 30, 30]);
+    assert_eq!(frames[0].pixel(w + 3, 0), [30, 30, 30]);
+    assert_ne!(frames[0].pixel(w + 4, 0), [30, 30, 30]);
+    let inked = (0..w).any(|x| (0..h).any(|y| frames[0].pixel(2 + x, 2 + y)[0] > 200));
+    assert!(inked, "no white text on the label");
 
     let path = tmp("tiled.png");
     tiled.save_png(&path).expect("save");

@@ -1,4 +1,4 @@
-//! Line and bar charts for report pictures, drawn onto [`Image`] with the built-in 5x7 font.
+//! Line and bar charts for report pictures, drawn onto [`Image`] with its anti-aliased text (DejaVu Sans).
 //!
 //! [`Chart`] draws series of `(x, y)` points (lines, markers, dashes) with 1-2-5 ticks or
 //! decade ticks on log axes, dashed reference lines, a legend, a title and axis labels;
@@ -12,8 +12,8 @@ mod tests;
 
 pub use axis::Axis;
 use axis::{fmt_compact, padded};
-use cutfem::render::{Image, GLYPH_HEIGHT, GLYPH_WIDTH};
-use raster::{text_up, tw, Layer, Plot};
+use cutfem::render::{Image, GLYPH_HEIGHT};
+use raster::{tw, Layer, Plot};
 
 const WHITE: [u8; 3] = [255, 255, 255];
 const INK: [u8; 3] = [25, 25, 25];
@@ -266,7 +266,7 @@ fn draw_titles(img: &mut Image, p: &Plot, title: &str, x_label: &str, y_label: &
     let (xc, yc) = ((p.x0 + p.x1) / 2, (p.y0 + p.y1) / 2);
     let bottom = img.height.saturating_sub(pad + GLYPH_HEIGHT * s);
     img.draw_text(xc.saturating_sub(tw(x_label, s) / 2), bottom, x_label, INK, s);
-    text_up(img, pad, yc.saturating_sub(tw(y_label, s) / 2), y_label, INK, s);
+    img.draw_text_up(pad, yc.saturating_sub(tw(y_label, s) / 2), y_label, INK, s);
 }
 
 /// Dashed horizontal reference lines; returns their legend entries.
@@ -431,8 +431,8 @@ impl BarChart {
             if fit(&names, s) { s } else { 1 },
             !fit(&names, 1),
         );
-        let cut = |l: &str| l.chars().take(h / 3 / (GLYPH_WIDTH + 1)).collect::<String>();
-        let up_h = names.iter().map(|l| tw(&cut(l), 1)).max().unwrap_or(0);
+        // turned labels are written in full; at most half the picture is kept for them
+        let up_h = names.iter().map(|l| tw(l, 1)).max().unwrap_or(0).min(h / 2);
         let (p, [ya, _]) = layout(w, h, labels, if up { up_h } else { GLYPH_HEIGHT * ls }, ranges);
         draw_axes(&mut img, &p, &ya, None);
         let base = if self.log_y {
@@ -465,14 +465,7 @@ impl BarChart {
             );
             let ly = p.y1 + 5 * s + 1;
             if up {
-                text_up(
-                    &mut img,
-                    xc.saturating_sub(GLYPH_HEIGHT / 2),
-                    ly,
-                    &cut(label),
-                    INK,
-                    1,
-                );
+                img.draw_text_up(xc.saturating_sub(GLYPH_HEIGHT / 2), ly, label, INK, 1);
             } else {
                 img.draw_text(xc.saturating_sub(tw(label, ls) / 2), ly, label, INK, ls);
             }

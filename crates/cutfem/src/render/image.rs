@@ -1,6 +1,6 @@
-//! RGB images: PNG output, tiling, text stamping.
+//! RGB images: PNG output, tiling, anti-aliased text (DejaVu Sans, [`super::font`]).
 
-use super::font::{glyph, GLYPH_HEIGHT, GLYPH_WIDTH};
+use super::font::{text_mask, text_size};
 use crate::Error;
 use std::path::Path;
 
@@ -117,27 +117,54 @@ impl Image {
         out
     }
 
-    /// Size in pixels of `text` drawn by [`Image::draw_text`] at `scale` (one line; a
-    /// 1-pixel gap per glyph column at scale 1).
+    /// Size in pixels of the box of `text` drawn by [`Image::draw_text`] at `scale`: its
+    /// width and the height of its capitals (see [`super::font`]).
     pub fn text_size(text: &str, scale: usize) -> (usize, usize) {
-        let n = text.chars().count();
-        let w = if n == 0 { 0 } else { n * (GLYPH_WIDTH + 1) - 1 };
-        (w * scale, GLYPH_HEIGHT * scale)
+        text_size(text, scale)
     }
 
-    /// Draws `text` with the built-in 5x7 font, each font pixel a `scale` x `scale` block,
-    /// top-left corner at `(x, y)`, clipped to the image. No background is drawn.
+    /// Draws one line of `text` in DejaVu Sans, anti-aliased, capitals `GLYPH_HEIGHT * scale`
+    /// pixels high, the top-left of its box at `(x, y)` (descenders below the box), clipped to
+    /// the image. No background is drawn.
     pub fn draw_text(&mut self, x: usize, y: usize, text: &str, color: [u8; 3], scale: usize) {
-        let scale = scale.max(1);
-        for (n, c) in text.chars().enumerate() {
-            let gx = x + n * (GLYPH_WIDTH + 1) * scale;
-            for (row, bits) in glyph(c).iter().enumerate() {
-                for col in 0..GLYPH_WIDTH {
-                    if bits >> (GLYPH_WIDTH - 1 - col) & 1 == 1 {
-                        self.fill_rect(gx + col * scale, y + row * scale, scale, scale, color);
-                    }
-                }
+        let m = text_mask(text, scale);
+        let top = y as i64 - m.above as i64;
+        for v in 0..m.height {
+            for u in 0..m.width {
+                self.blend(
+                    x as i64 + u as i64,
+                    top + v as i64,
+                    color,
+                    m.alpha[u + m.width * v],
+                );
             }
+        }
+    }
+
+    /// Draws `text` like [`Image::draw_text`] but turned a quarter turn counter-clockwise (read
+    /// bottom to top): the turned box (capital height wide, text width high) has its top-left
+    /// corner at `(x, y)`.
+    pub fn draw_text_up(&mut self, x: usize, y: usize, text: &str, color: [u8; 3], scale: usize) {
+        let m = text_mask(text, scale);
+        let left = x as i64 - m.above as i64;
+        for v in 0..m.height {
+            for u in 0..m.width {
+                let (px, py) = (left + v as i64, y as i64 + (m.width - 1 - u) as i64);
+                self.blend(px, py, color, m.alpha[u + m.width * v]);
+            }
+        }
+    }
+
+    /// Mixes `color` into pixel `(x, y)` with weight `alpha` (0..1); outside the image, nothing.
+    pub fn blend(&mut self, x: i64, y: i64, color: [u8; 3], alpha: f32) {
+        let inside = (0..self.width as i64).contains(&x) && (0..self.height as i64).contains(&y);
+        if !inside || alpha <= 0.0 {
+            return;
+        }
+        let a = alpha.min(1.0);
+        let i = 3 * (x as usize + self.width * y as usize);
+        for (dst, &c) in self.rgb[i..i + 3].iter_mut().zip(&color) {
+            *dst = (f32::from(*dst) * (1.0 - a) + f32::from(c) * a).round() as u8;
         }
     }
 

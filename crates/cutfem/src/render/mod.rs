@@ -12,15 +12,16 @@
 //!   plane `y = height` ([`Ground`]) and per-mesh uniform colour or per-vertex scalar colouring
 //!   through the [`viridis`] colour map ([`Coloring`]).
 //! * [`Image`]: RGB images with PNG output (`png` crate), [`Image::tile`] for several frames
-//!   side by side, and a built-in 5x7 bitmap font ([`Image::draw_text`], [`Image::label`]).
+//!   side by side, and anti-aliased text in the embedded DejaVu Sans ([`font`],
+//!   [`Image::draw_text`], [`Image::draw_text_up`], [`Image::label`]).
 //!
 //! Triangles with a vertex behind the camera's near plane are skipped (no clipping), so the
 //! camera should look at the meshes from outside.
 
-mod font;
+pub mod font;
 mod image;
 
-pub use font::{glyph, GLYPH_HEIGHT, GLYPH_WIDTH};
+pub use font::{text_mask, TextMask, GLYPH_HEIGHT};
 pub use image::{Image, BORDER_COLOR};
 
 pub use crate::v3::{cross, dot, normalize, sub};

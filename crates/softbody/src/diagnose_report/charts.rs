@@ -119,30 +119,24 @@ pub(super) fn residual_direction(d: &Diagnosis, gravity: Option<[f64; 3]>) -> Im
     stack(&[chart, words])
 }
 
-/// An effect list abbreviated: each word of each name cut to 4 letters, names joined by `+`.
-pub(super) fn abbreviate(effects: &[String]) -> String {
+/// An effect list written in full: its names joined by ` + `, or "(none)".
+pub(super) fn effect_list(effects: &[String]) -> String {
     if effects.is_empty() {
         return "(none)".into();
     }
-    let short = |e: &String| {
-        e.split('_')
-            .map(|w| w.chars().take(4).collect::<String>())
-            .collect::<Vec<_>>()
-            .join("_")
-    };
-    effects.iter().map(short).collect::<Vec<_>>().join("+")
+    effects.join(" + ")
 }
 
-/// What changed from `before` to `after`: `+added -removed`, abbreviated.
+/// What changed from `before` to `after`: `+added -removed`, names in full.
 pub(super) fn change(before: &[String], after: &[String]) -> String {
     let added: Vec<String> = after.iter().filter(|e| !before.contains(e)).cloned().collect();
     let removed: Vec<String> = before.iter().filter(|e| !after.contains(e)).cloned().collect();
     let mut parts = Vec::new();
     if !added.is_empty() {
-        parts.push(format!("+{}", abbreviate(&added)));
+        parts.push(format!("+{}", effect_list(&added)));
     }
     if !removed.is_empty() {
-        parts.push(format!("-{}", abbreviate(&removed)));
+        parts.push(format!("-{}", effect_list(&removed)));
     }
     parts.join(" ")
 }
@@ -182,7 +176,7 @@ pub(super) fn history(runs: &[Entry]) -> Image {
     let ([x0, y0, x1, y1], [ya, xa]) = chart.plot_area();
     let changes: Vec<(usize, String)> = (0..runs.len())
         .filter_map(|i| match i {
-            0 => Some((i, abbreviate(&runs[0].effects))),
+            0 => Some((i, effect_list(&runs[0].effects))),
             _ if runs[i].effects != runs[i - 1].effects => {
                 Some((i, change(&runs[i - 1].effects, &runs[i].effects)))
             }
@@ -243,21 +237,10 @@ pub(super) fn history(runs: &[Entry]) -> Image {
 pub(super) fn candidates(d: &Diagnosis) -> Image {
     let (pred, refit) = (palette(0), palette(2));
     let shown = &d.candidates[..d.candidates.len().min(8)];
-    let n = shown
-        .iter()
-        .map(|c| 1 + usize::from(c.rms_after.is_some()))
-        .sum::<usize>();
-    // full names when they fit under their bars at the chart's text size, else abbreviated
-    let slot = 700 / n.max(1);
-    let fits = shown.iter().all(|c| Image::text_size(&c.effect, 2).0 + 4 <= slot);
+    // full names: the chart writes them smaller, or turned, when they don't fit under their bars
     let mut bars = Vec::new();
     for c in shown {
-        let name = if fits {
-            c.effect.clone()
-        } else {
-            abbreviate(std::slice::from_ref(&c.effect))
-        };
-        bars.push((name, c.predicted_rms, pred));
+        bars.push((c.effect.clone(), c.predicted_rms, pred));
         if let Some(r) = c.rms_after {
             bars.push(("refit".to_string(), r, refit));
         }

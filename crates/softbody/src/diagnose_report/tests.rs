@@ -364,8 +364,8 @@ fn spatial_hash_finds_the_nearest_vertex() {
 fn helpers() {
     assert_eq!(wrap("aa bb cc", 5), vec!["aa bb", "cc"]);
     assert_eq!(
-        abbreviate(&["initial_velocity".into(), "gravity".into()]),
-        "init_velo+grav"
+        effect_list(&["initial_velocity".into(), "gravity".into()]),
+        "initial_velocity + gravity"
     );
     assert_eq!(change(&["a".into()], &["b".into()]), "+b -a");
     assert_eq!(to_rgb(diverging(0.0)), [247, 247, 247]);

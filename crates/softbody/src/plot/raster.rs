@@ -1,8 +1,8 @@
 //! Rasterizing onto [`Image`]: the plot rectangle, anti-aliased lines, dashes and discs
-//! (coverage layers clipped to the plot), rotated text.
+//! (coverage layers clipped to the plot).
 
 use super::Pt;
-use cutfem::render::{glyph, Image, GLYPH_WIDTH};
+use cutfem::render::Image;
 
 /// The plot interior `[x0, x1) x [y0, y1)` in pixels, and the text scale `s`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -31,19 +31,6 @@ impl Plot {
 
 pub(super) fn tw(text: &str, scale: usize) -> usize {
     Image::text_size(text, scale).0
-}
-
-/// Text rotated a quarter turn counter-clockwise (read bottom to top), top-left at `(x, y)`.
-pub(super) fn text_up(img: &mut Image, x: usize, y: usize, text: &str, color: [u8; 3], s: usize) {
-    let len = tw(text, 1);
-    for (n, c) in text.chars().enumerate() {
-        for (row, bits) in glyph(c).iter().enumerate() {
-            for col in (0..GLYPH_WIDTH).filter(|col| bits >> (GLYPH_WIDTH - 1 - col) & 1 == 1) {
-                let u = n * (GLYPH_WIDTH + 1) + col;
-                img.fill_rect(x + row * s, y + (len - 1 - u) * s, s, s, color);
-            }
-        }
-    }
 }
 
 /// Coverage (0..1) of one colour over the plot interior, composited once so that a polyline
