@@ -42,7 +42,7 @@ mod pipeline;
 mod step;
 
 pub(crate) use cells::CellWork;
-pub(crate) use newmark::fill_newmark;
+pub use newmark::newmark_system;
 pub(crate) use step::{StepCells, StepOutput, StepState};
 
 use super::element::{lanes3, padded_transpose, rotate_add, PaddedBlock, StiffnessTables};

@@ -24,7 +24,8 @@
 mod dirichlet;
 mod kept;
 
-use super::assembly::{fill_newmark, Assembler, CellWork, ElementBlocks, Material};
+pub use super::assembly::newmark_system;
+use super::assembly::{Assembler, CellWork, ElementBlocks, Material};
 use super::assembly::{StepCells, StepOutput, StepState};
 use super::collision::{add_ground_forces, crossings, Crossing};
 use super::element::{BlockCache, POLAR_ITERATIONS};
@@ -407,22 +408,12 @@ impl Simulation {
     pub fn solve_static(&mut self) -> Result<StepInfo, Error> {
         let (_, blocks) = self.assemble_stiffness(false);
         self.blocks.keep(blocks);
-        self.f
-            .assign(self.mass.ex().cwise_mul(gpumat::scalar(self.model.gravity)));
-        if let Some(e) = &self.model.external_force {
-            e.add_to(&mut self.f);
-        }
-        let mut x = Matrix::zeros(self.grid.dofs(), 1, 1);
-        let t = Instant::now();
-        let (iterations, residual, fallback) = solve(self.stiffness(), &self.f, &mut x, &self.solver)?;
-        self.u = x;
-        Ok(StepInfo {
-            iterations,
-            residual,
-            fallback,
-            solve_s: t.elapsed().as_secs_f64(),
-            ..Default::default()
-        })
+        let mut f = std::mem::replace(&mut self.f, Matrix::zeros(0, 1, 1));
+        let solved = solve_static(&self.model, &self.mass, self.stiffness(), &mut f, &self.solver);
+        self.f = f;
+        let (u, info) = solved?;
+        self.u = u;
+        Ok(info)
     }
 
     /// The elastic force `-K u` (corotated when the model says so, with the corotation force
@@ -556,20 +547,29 @@ impl Simulation {
     }
 }
 
-/// The Newmark-1 system with Rayleigh damping (module docs, eq. 2.6.2): `A` on `K`'s pattern
-/// and `b`, in one fused pass over the rows of `K` (each block of `K` read once; fixed row
-/// blocks per task and sums in column order, so the values do not depend on the number of
-/// threads). Shared by the grid and the tet simulations.
-#[allow(clippy::too_many_arguments)]
-pub fn newmark_system(
+/// The static equilibrium `K u = f` under the model's body forces (gravity times the lumped
+/// mass, plus the external force), which are written to `f`. Shared by the grid and the tet
+/// simulations.
+pub(crate) fn solve_static(
     model: &Model,
     mass: &Matrix<f64>,
     k: &SparseMatrix<Mat3<f64>>,
-    u: &Matrix<Vec3<f64>>,
-    v: &Matrix<Vec3<f64>>,
-    f: &Matrix<Vec3<f64>>,
-    a: &mut SparseMatrix<Mat3<f64>>,
-    b: &mut Matrix<Vec3<f64>>,
-) {
-    fill_newmark(model, mass, k, u, v, f, a, b);
+    f: &mut Matrix<Vec3<f64>>,
+    settings: &SolverSettings,
+) -> Result<(Matrix<Vec3<f64>>, StepInfo), Error> {
+    f.assign(mass.ex().cwise_mul(gpumat::scalar(model.gravity)));
+    if let Some(e) = &model.external_force {
+        e.add_to(f);
+    }
+    let mut x = Matrix::zeros(f.rows(), 1, 1);
+    let t = Instant::now();
+    let (iterations, residual, fallback) = solve(k, f, &mut x, settings)?;
+    let info = StepInfo {
+        iterations,
+        residual,
+        fallback,
+        solve_s: t.elapsed().as_secs_f64(),
+        ..Default::default()
+    };
+    Ok((x, info))
 }

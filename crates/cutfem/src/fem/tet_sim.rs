@@ -8,7 +8,7 @@ use crate::fem::collision::{softmin0, softmin0_derivative, ContactScheme};
 use crate::fem::element::POLAR_ITERATIONS;
 use crate::fem::grid::{Grid, INACTIVE};
 use crate::fem::model::Model;
-use crate::fem::sim::{newmark_system, solve, SolverSettings, StepInfo};
+use crate::fem::sim::{newmark_system, solve_static, SolverSettings, StepInfo};
 use crate::fem::solver::LinearSolver;
 use gpumat::{Mat3, Matrix, SparseMatrix, Vec3};
 use std::time::Instant;
@@ -301,22 +301,9 @@ impl TetSimulation {
         let m = self.material();
         self.assembler
             .assemble_stiffness(&self.mesh, &m, None, &mut self.k);
-        let g = self.model.gravity;
-        self.f.assign(self.mass.ex().cwise_mul(gpumat::scalar(g)));
-        if let Some(e) = &self.model.external_force {
-            e.add_to(&mut self.f);
-        }
-        let mut x = Matrix::zeros(self.mesh.dofs(), 1, 1);
-        let t = Instant::now();
-        let (iterations, residual, fallback) = solve(&self.k, &self.f, &mut x, &self.solver)?;
-        self.u = x;
-        Ok(StepInfo {
-            iterations,
-            residual,
-            fallback,
-            solve_s: t.elapsed().as_secs_f64(),
-            ..Default::default()
-        })
+        let (u, info) = solve_static(&self.model, &self.mass, &self.k, &mut self.f, &self.solver)?;
+        self.u = u;
+        Ok(info)
     }
 
     /// The elastic force `-K u` at the free nodes (corotated when the model says so, with the

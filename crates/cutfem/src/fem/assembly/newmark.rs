@@ -3,7 +3,7 @@
 //! `A = cm M + ck K`, `b = cm M u + cu K u + M v / theta + dt f` with `cm = 1/(theta dt) + a1`,
 //! `ck = a2 + theta dt`, `cu = a2 - (1-theta) dt`.
 //!
-//! [`fill_newmark`] fills both from a complete `K` in one pass over its rows (the tet
+//! [`newmark_system`] fills both from a complete `K` in one pass over its rows (the tet
 //! simulation's path): each task owns a fixed block of rows, reads each block of its rows
 //! once, writes the row's blocks of `A` and its entry of `b`, with `(K u)_r` summed in column
 //! order, so the values do not depend on the number of threads. A grid step never stores `K`
@@ -46,9 +46,12 @@ impl Coefficients {
     }
 }
 
-/// `A` and `b` of the Newmark system for a complete `K` ([`crate::fem::sim::newmark_system`]).
+/// The Newmark-1 system with Rayleigh damping (module docs, eq. 2.6.2): `A` on `K`'s pattern
+/// and `b`, in one fused pass over the rows of `K` (each block of `K` read once; fixed row
+/// blocks per task and sums in column order, so the values do not depend on the number of
+/// threads). Shared by the grid and the tet simulations.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn fill_newmark(
+pub fn newmark_system(
     model: &Model,
     mass: &Matrix<f64>,
     k: &SparseMatrix<Mat3<f64>>,
