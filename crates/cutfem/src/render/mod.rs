@@ -20,9 +20,12 @@
 
 pub mod font;
 mod image;
+pub mod raster;
+mod shade;
 
 pub use font::{text_mask, TextMask, GLYPH_HEIGHT};
 pub use image::{Image, BORDER_COLOR};
+pub use shade::{render, render_with_depth, vertex_normals};
 
 pub use crate::v3::{cross, dot, normalize, sub};
 use crate::TriMesh;
@@ -149,6 +152,9 @@ impl Frame {
 pub enum Coloring<'a> {
     /// one base colour for the whole mesh
     Uniform([u8; 3]),
+    /// one RGB colour per vertex, components in `[0, 1]`, interpolated across the faces;
+    /// vertices without an entry are grey
+    PerVertex(&'a [[f64; 3]]),
     /// one scalar per vertex mapped through [`viridis`]; `range` is the `(low, high)` mapped to
     /// the ends of the map (values outside are clamped), by default the finite values'
     /// min and max. Non-finite values are drawn grey.
@@ -256,189 +262,6 @@ pub fn render_mesh(meshes: &[(&TriMesh, [u8; 3])], camera: &Camera, width: usize
         })
         .collect();
     render(&items, camera, width, height, &RenderOptions::default())
-}
-
-/// Per-vertex colour source of a prepared mesh.
-enum VertexColor {
-    Uniform([f64; 3]),
-    /// normalized scalar in [0, 1] or NaN
-    Scalar(Vec<f64>),
-}
-
-/// Area-weighted vertex normals.
-fn vertex_normals(mesh: &TriMesh) -> Vec<[f64; 3]> {
-    let mut n = vec![[0.0; 3]; mesh.vertices.len()];
-    for f in &mesh.faces {
-        let [a, b, c] = f.map(|v| mesh.vertices[v as usize]);
-        let fnrm = cross(sub(b, a), sub(c, a));
-        for &v in f {
-            for d in 0..3 {
-                n[v as usize][d] += fnrm[d];
-            }
-        }
-    }
-    n.into_iter().map(normalize).collect()
-}
-
-/// Renders `items` into a `width` x `height` image seen by `camera`. Faces with out-of-range
-/// vertex indices and scalar colourings of the wrong length are skipped/drawn grey rather
-/// than panicking.
-pub fn render(
-    items: &[RenderItem],
-    camera: &Camera,
-    width: usize,
-    height: usize,
-    options: &RenderOptions,
-) -> Image {
-    let s = options.supersample.clamp(1, 8);
-    let (w, h) = (width * s, height * s);
-    let fr = camera.frame(w, h);
-    let bg = options.background.map(|c| c as f64 / 255.0);
-    let mut color = vec![bg; w * h];
-    let mut depth = vec![f64::INFINITY; w * h];
-    let light = camera.headlight();
-    let ambient = options.ambient.clamp(0.0, 1.0);
-
-    for item in items {
-        let mesh = item.mesh;
-        let nv = mesh.vertices.len();
-        let vcolor = match item.coloring {
-            Coloring::Uniform(c) => VertexColor::Uniform(c.map(|x| x as f64 / 255.0)),
-            Coloring::Scalar { values, range } => {
-                let (lo, hi) = range.unwrap_or_else(|| {
-                    values
-                        .iter()
-                        .filter(|v| v.is_finite())
-                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-                            (lo.min(v), hi.max(v))
-                        })
-                });
-                let span = if hi > lo { hi - lo } else { 1.0 };
-                VertexColor::Scalar(
-                    (0..nv)
-                        .map(|v| match values.get(v) {
-                            Some(&x) if x.is_finite() => ((x - lo) / span).clamp(0.0, 1.0),
-                            _ => f64::NAN,
-                        })
-                        .collect(),
-                )
-            }
-        };
-        let normals = if options.smooth {
-            vertex_normals(mesh)
-        } else {
-            Vec::new()
-        };
-        let proj: Vec<Option<[f64; 3]>> = mesh.vertices.iter().map(|&p| fr.project(p)).collect();
-        for f in &mesh.faces {
-            if f.iter().any(|&v| v as usize >= nv) {
-                continue;
-            }
-            let [i0, i1, i2] = f.map(|v| v as usize);
-            let (Some(p0), Some(p1), Some(p2)) = (proj[i0], proj[i1], proj[i2]) else {
-                continue;
-            };
-            let area = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
-            if area.abs() < 1e-12 {
-                continue;
-            }
-            let face_normal = normalize(cross(
-                sub(mesh.vertices[i1], mesh.vertices[i0]),
-                sub(mesh.vertices[i2], mesh.vertices[i0]),
-            ));
-            let xmin = p0[0].min(p1[0]).min(p2[0]).floor().max(0.0) as usize;
-            let ymin = p0[1].min(p1[1]).min(p2[1]).floor().max(0.0) as usize;
-            let xmax = (p0[0].max(p1[0]).max(p2[0]).ceil().max(0.0) as usize).min(w);
-            let ymax = (p0[1].max(p1[1]).max(p2[1]).ceil().max(0.0) as usize).min(h);
-            let iz = [1.0 / p0[2], 1.0 / p1[2], 1.0 / p2[2]];
-            for y in ymin..ymax {
-                let py = y as f64 + 0.5;
-                for x in xmin..xmax {
-                    let px = x as f64 + 0.5;
-                    // barycentric coordinates in screen space
-                    let l1 = ((px - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (py - p0[1])) / area;
-                    let l2 = ((p1[0] - p0[0]) * (py - p0[1]) - (px - p0[0]) * (p1[1] - p0[1])) / area;
-                    let l0 = 1.0 - l1 - l2;
-                    if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
-                        continue;
-                    }
-                    let inv_z = l0 * iz[0] + l1 * iz[1] + l2 * iz[2];
-                    let z = 1.0 / inv_z;
-                    let pix = x + w * y;
-                    if z >= depth[pix] {
-                        continue;
-                    }
-                    depth[pix] = z;
-                    // perspective-correct weights
-                    let wt = [l0 * iz[0] * z, l1 * iz[1] * z, l2 * iz[2] * z];
-                    let n = if options.smooth {
-                        let ns = [normals[i0], normals[i1], normals[i2]];
-                        normalize([0, 1, 2].map(|d| wt[0] * ns[0][d] + wt[1] * ns[1][d] + wt[2] * ns[2][d]))
-                    } else {
-                        face_normal
-                    };
-                    let shade = ambient + (1.0 - ambient) * dot(n, light).abs();
-                    let base = match &vcolor {
-                        VertexColor::Uniform(c) => *c,
-                        VertexColor::Scalar(t) => {
-                            let tv = wt[0] * t[i0] + wt[1] * t[i1] + wt[2] * t[i2];
-                            viridis(tv).map(|c| c as f64 / 255.0)
-                        }
-                    };
-                    color[pix] = base.map(|c| (c * shade).min(1.0));
-                }
-            }
-        }
-    }
-
-    if let Some(g) = options.ground {
-        let cell = if g.cell > 0.0 { g.cell } else { 1.0 };
-        let extent = if g.extent > 0.0 { g.extent } else { f64::INFINITY };
-        for y in 0..h {
-            for x in 0..w {
-                let dir = fr.ray(x as f64 + 0.5, y as f64 + 0.5);
-                if dir[1].abs() < 1e-12 {
-                    continue;
-                }
-                // dir has unit depth, so the ray parameter is the depth
-                let t = (g.height - fr.eye[1]) / dir[1];
-                let pix = x + w * y;
-                if t <= fr.near || t >= depth[pix] {
-                    continue;
-                }
-                let q = [0, 1, 2].map(|d| fr.eye[d] + t * dir[d]);
-                let checker = ((q[0] / cell).floor() + (q[2] / cell).floor()).rem_euclid(2.0) as usize;
-                let c = g.colors[checker.min(1)].map(|c| c as f64 / 255.0);
-                let r = ((q[0] - camera.target[0]).powi(2) + (q[2] - camera.target[2]).powi(2)).sqrt();
-                let fade = (1.0 - (r / extent).powi(2)).clamp(0.0, 1.0);
-                color[pix] = [0, 1, 2].map(|d| fade * c[d] + (1.0 - fade) * color[pix][d]);
-                depth[pix] = t;
-            }
-        }
-    }
-
-    // downsample to the output size
-    let mut img = Image::new(width, height, options.background);
-    let norm = 1.0 / (s * s) as f64;
-    for y in 0..height {
-        for x in 0..width {
-            let mut acc = [0.0; 3];
-            for sy in 0..s {
-                for sx in 0..s {
-                    let c = color[(x * s + sx) + w * (y * s + sy)];
-                    for d in 0..3 {
-                        acc[d] += c[d];
-                    }
-                }
-            }
-            img.set_pixel(
-                x,
-                y,
-                acc.map(|a| (a * norm * 255.0).round().clamp(0.0, 255.0) as u8),
-            );
-        }
-    }
-    img
 }
 
 /// The axis-aligned bounding box `(min, max)` of all vertices of `meshes`; `None` when they

@@ -1,8 +1,8 @@
-//! A small z-buffered triangle rasterizer with per-vertex colours (Gouraud) and two-sided
-//! Lambert shading from a headlight, for the diagnosis pictures; `cutfem::render` colours a
-//! mesh uniformly or through viridis only. Vertices are placed with [`Camera::project`].
+//! Shaded views with per-vertex colours for the diagnosis pictures (drawn by
+//! `cutfem::render`, the one rasterizer), and what is drawn over them: which points are
+//! visible, discs.
 
-use cutfem::render::{cross, dot, normalize, sub, Camera, Image};
+use cutfem::render::{render_with_depth, Camera, Coloring, Image, RenderItem, RenderOptions};
 use cutfem::TriMesh;
 
 /// Supersampling factor per axis.
@@ -19,94 +19,25 @@ pub struct View {
     camera: Camera,
 }
 
-/// Area-weighted vertex normals (faces with bad indices skipped).
-fn vertex_normals(mesh: &TriMesh) -> Vec<[f64; 3]> {
-    let nv = mesh.vertices.len();
-    let mut n = vec![[0.0; 3]; nv];
-    for f in mesh.faces.iter().filter(|f| f.iter().all(|&v| (v as usize) < nv)) {
-        let [a, b, c] = f.map(|v| mesh.vertices[v as usize]);
-        let fnrm = cross(sub(b, a), sub(c, a));
-        for &v in f {
-            for d in 0..3 {
-                n[v as usize][d] += fnrm[d];
-            }
-        }
-    }
-    n.into_iter().map(normalize).collect()
-}
-
 /// Renders `mesh` seen by `camera` into a `width` x `height` picture on white, each vertex in
 /// its colour of `colors` (`[0, 1]` RGB; missing entries grey), interpolated
 /// perspective-correctly, shaded by the interpolated normal.
 pub fn shaded(mesh: &TriMesh, colors: &[[f64; 3]], camera: &Camera, width: usize, height: usize) -> View {
-    let (w, h) = (width * SS, height * SS);
-    let mut color = vec![[1.0; 3]; w * h];
-    let mut depth = vec![f64::INFINITY; w * h];
-    let light = camera.headlight();
-    let normals = vertex_normals(mesh);
-    let nv = mesh.vertices.len();
-    let proj: Vec<Option<[f64; 3]>> = mesh.vertices.iter().map(|&p| camera.project(p, w, h)).collect();
-    let grey = [0.6; 3];
-    for f in mesh.faces.iter().filter(|f| f.iter().all(|&v| (v as usize) < nv)) {
-        let [i0, i1, i2] = f.map(|v| v as usize);
-        let (Some(p0), Some(p1), Some(p2)) = (proj[i0], proj[i1], proj[i2]) else {
-            continue;
-        };
-        let area = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
-        if area.abs() < 1e-12 {
-            continue;
-        }
-        let cs = [i0, i1, i2].map(|i| *colors.get(i).unwrap_or(&grey));
-        let ns = [i0, i1, i2].map(|i| normals[i]);
-        let xmin = p0[0].min(p1[0]).min(p2[0]).floor().max(0.0) as usize;
-        let ymin = p0[1].min(p1[1]).min(p2[1]).floor().max(0.0) as usize;
-        let xmax = (p0[0].max(p1[0]).max(p2[0]).ceil().max(0.0) as usize).min(w);
-        let ymax = (p0[1].max(p1[1]).max(p2[1]).ceil().max(0.0) as usize).min(h);
-        let iz = [1.0 / p0[2], 1.0 / p1[2], 1.0 / p2[2]];
-        for y in ymin..ymax {
-            let py = y as f64 + 0.5;
-            for x in xmin..xmax {
-                let px = x as f64 + 0.5;
-                let l1 = ((px - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (py - p0[1])) / area;
-                let l2 = ((p1[0] - p0[0]) * (py - p0[1]) - (px - p0[0]) * (p1[1] - p0[1])) / area;
-                let l0 = 1.0 - l1 - l2;
-                if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
-                    continue;
-                }
-                let z = 1.0 / (l0 * iz[0] + l1 * iz[1] + l2 * iz[2]);
-                let pix = x + w * y;
-                if z >= depth[pix] {
-                    continue;
-                }
-                depth[pix] = z;
-                let wt = [l0 * iz[0] * z, l1 * iz[1] * z, l2 * iz[2] * z];
-                let mix = |v: &[[f64; 3]; 3]| {
-                    [0, 1, 2].map(|d| wt[0] * v[0][d] + wt[1] * v[1][d] + wt[2] * v[2][d])
-                };
-                let shade = AMBIENT + (1.0 - AMBIENT) * dot(normalize(mix(&ns)), light).abs();
-                color[pix] = mix(&cs).map(|c| (c * shade).clamp(0.0, 1.0));
-            }
-        }
-    }
-    let mut img = Image::new(width, height, [255; 3]);
-    let mut out_depth = vec![f64::INFINITY; width * height];
-    for y in 0..height {
-        for x in 0..width {
-            let mut acc = [0.0; 3];
-            for (sx, sy) in (0..SS).flat_map(|sy| (0..SS).map(move |sx| (sx, sy))) {
-                let pix = (x * SS + sx) + w * (y * SS + sy);
-                for d in 0..3 {
-                    acc[d] += color[pix][d];
-                }
-                out_depth[x + width * y] = out_depth[x + width * y].min(depth[pix]);
-            }
-            let n = (SS * SS) as f64;
-            img.set_pixel(x, y, acc.map(|a| (a / n * 255.0).round().clamp(0.0, 255.0) as u8));
-        }
-    }
+    let item = RenderItem {
+        mesh,
+        coloring: Coloring::PerVertex(colors),
+    };
+    let options = RenderOptions {
+        background: [255; 3],
+        ambient: AMBIENT,
+        smooth: true,
+        ground: None,
+        supersample: SS,
+    };
+    let (img, depth) = render_with_depth(&[item], camera, width, height, &options);
     View {
         img,
-        depth: out_depth,
+        depth,
         camera: *camera,
     }
 }
