@@ -11,7 +11,9 @@
 //! and its PCG solve ([`fem::sim`], sec. 4.4.3-4.4.4). [`fem::advect`] extends the
 //! displacements and advects the level set (sec. 4.4.5); [`fem::tet`] is the tetrahedral
 //! baseline of sec. 4.6. [`surface`] (marching cubes, or dual contouring that keeps sharp edges)
-//! and [`render`] turn states into PLY meshes and PNG pictures; [`scene`] reads the TOML scene
+//! and [`render`] turn states into PLY meshes and PNG pictures ([`render::raster`] is the one
+//! z-buffer of the workspace, also behind the virtual depth cameras; [`render::font`] the
+//! text, DejaVu Sans); [`scene`] reads the TOML scene
 //! files of `docs/interface.md`. The Newmark coefficients live in [`fem::NewmarkCoefficients`],
 //! the `[f64; 3]` helpers in [`v3`].
 //!
