@@ -169,6 +169,25 @@ impl CameraFile {
         })
     }
 
+    /// The text of the camera file of `cameras` (ids = positions), with the depth noise and
+    /// seed they observed with: what `softbody observe` writes beside its CSV and
+    /// [`CameraFile::parse`] reads back.
+    pub fn text(cameras: &[Camera], noise: f64, seed: u64) -> String {
+        let cams: Vec<Value> = cameras
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                serde_json::json!({
+                    "id": i, "eye": c.eye, "target": c.target, "up": c.up, "fov_y": c.fov_y,
+                    "width": c.width, "height": c.height,
+                })
+            })
+            .collect();
+        let v = serde_json::json!({"cameras": cams, "noise": noise, "seed": seed});
+        // a Value of numbers, strings and lists always serializes
+        serde_json::to_string_pretty(&v).unwrap_or_default()
+    }
+
     /// The eyes, indexed by camera id.
     pub fn eyes(&self) -> Vec<[f64; 3]> {
         self.cameras.iter().map(|c| c.eye).collect()

@@ -275,14 +275,7 @@ fn surface_observations(g: &Grid) -> Vec<(usize, Vec<ObservedPoint>)> {
         .step_by(3)
         .map(|t| {
             let u = &reference[t];
-            let mesh = surface.deformed(|node| {
-                let d = g.node_dofs[node];
-                if d == cutfem::fem::grid::INACTIVE {
-                    [0.0; 3]
-                } else {
-                    u.get(d as usize, 0, 0).to_array()
-                }
-            });
+            let mesh = g.deformed(&surface, u);
             let pts = mesh
                 .vertices
                 .iter()

@@ -20,7 +20,6 @@ use adjoint::observations::Observations;
 use adjoint::observe::{observe_mesh, place_cameras, record, Camera, RigParams};
 use adjoint::params::ParamSet;
 use adjoint::problem::Problem;
-use cutfem::fem::grid::INACTIVE;
 use cutfem::fem::Simulation;
 use cutfem::scene::Scene;
 use cutfem::surface::extract_surface;
@@ -228,10 +227,7 @@ fn observe(scene: &Scene, steps: usize, radius: f64) -> Result<(Observations, Ve
     let mut obs = Observations::new();
     for f in 1..=steps {
         sim.step().map_err(|e| format!("truth step {f}: {e}"))?;
-        let mesh = surface.deformed(|node| match sim.grid.node_dofs[node] {
-            INACTIVE => [0.0; 3],
-            d => sim.u.get(d as usize, 0, 0).to_array(),
-        });
+        let mesh = sim.grid.deformed(&surface, &sim.u);
         record(&mut obs, f, &observe_mesh(&mesh, &cameras, 0.0, 0, f));
     }
     Ok((obs, cameras.iter().map(|c| c.eye).collect()))

@@ -4,7 +4,7 @@
 //!
 //! The scene is simulated as by `simulate` (every effect of its model); at each observed
 //! frame the reference marching-cubes surface moved by the interpolated displacements
-//! ([`deformed_surface`]) is rendered by every camera of the rig (`adjoint::observe`: cameras
+//! (`Grid::deformed`) is rendered by every camera of the rig (`adjoint::observe`: cameras
 //! at distance `--radius` from the centre of the body's reference bounding box, polar angle
 //! from +y uniform in [pi/6, pi/2], azimuth uniform in [0, 2 pi), drawn from `--seed`),
 //! Gaussian noise of standard deviation `--noise` is added to every depth, and the pixels
@@ -12,9 +12,8 @@
 //! step); `--include-reference` adds frame 0, `--frames` picks a list instead.
 
 use crate::progress;
-use crate::simulate::{default_out, deformed_surface};
-use adjoint::observations::Observations;
-use adjoint::observe::{observe_mesh, place_cameras, record, render_depth, Camera, RigParams};
+use crate::simulate::default_out;
+use adjoint::observe::{observe_run, render_depth, Camera, RigParams};
 use cutfem::render::{viridis, Image};
 use cutfem::scene::Scene;
 use cutfem::TriMesh;
@@ -198,44 +197,11 @@ pub fn run(a: Args) -> Result<(), String> {
 
     // the scene's model with its model-level effects (e.g. `wind`)
     let mut sim = adjoint::fit::scene_simulation(&scene)?;
-    let surface = sim
-        .grid
-        .surface()
-        .map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    let (lo, hi) = surface
-        .mesh
-        .bounding_box()
-        .ok_or_else(|| format!("{}: the body has no surface to observe", a.scene.display()))?;
-    let target = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
-    let cameras = place_cameras(target, &rig);
-
-    let mut obs = Observations::new();
-    let (mut t_sim, mut t_obs) = (0.0, 0.0);
-    let mut observe = |f: usize, mesh: &TriMesh, obs: &mut Observations| {
-        let t = Instant::now();
-        record(obs, f, &observe_mesh(mesh, &cameras, a.noise, a.seed, f));
-        t_obs += t.elapsed().as_secs_f64();
-    };
-    let mut last_mesh = None;
-    let mut keep = |f: usize, mesh: TriMesh, obs: &mut Observations| {
-        if frames.binary_search(&f).is_ok() {
-            observe(f, &mesh, obs);
-            if f == last {
-                last_mesh = Some(mesh);
-            }
-        }
-    };
-    keep(0, deformed_surface(&surface, &sim.grid, &sim.u), &mut obs);
     let pb = progress::bar(last as u64, "observe", a.json);
-    for f in 1..=last {
-        let t = Instant::now();
-        sim.step().map_err(|e| format!("step {f}: {e}"))?;
-        sim.check_finite().map_err(|e| format!("step {f}: {e}"))?;
-        t_sim += t.elapsed().as_secs_f64();
-        keep(f, deformed_surface(&surface, &sim.grid, &sim.u), &mut obs);
-        pb.inc(1);
-    }
+    let run = observe_run(&mut sim, &rig, a.noise, &frames, |_| pb.inc(1))
+        .map_err(|e| format!("{}: {e}", a.scene.display()))?;
     pb.finish_and_clear();
+    let (obs, cameras, target) = (&run.observations, &run.cameras, run.target);
     if obs.is_empty() {
         return Err(format!(
             "{}: the {} cameras saw no point of the body in the {} frames observed (radius {}, fov {} degrees, \
@@ -251,23 +217,12 @@ pub fn run(a: Args) -> Result<(), String> {
     }
     obs.write_csv(files.path(&out)).map_err(|e| e.to_string())?;
     // the cameras beside the CSV: `fit` measures residuals along their viewing rays
-    let cams_json = json!({
-        "cameras": cameras.iter().enumerate().map(|(i, c)| json!({
-            "id": i, "eye": c.eye, "target": c.target, "up": c.up, "fov_y": c.fov_y,
-            "width": c.width, "height": c.height,
-        })).collect::<Vec<_>>(),
-        "noise": a.noise,
-        "seed": a.seed,
-    });
-    std::fs::write(
-        files.path(&cams_path),
-        serde_json::to_string_pretty(&cams_json).expect("json"),
-    )
-    .map_err(|e| format!("{}: {e}", cams_path.display()))?;
+    let cams_text = adjoint::camera_file::CameraFile::text(cameras, a.noise, a.seed);
+    std::fs::write(files.path(&cams_path), cams_text).map_err(|e| format!("{}: {e}", cams_path.display()))?;
 
-    let preview_path = match (&a.preview, &last_mesh) {
+    let preview_path = match (&a.preview, &run.last_mesh) {
         (Some(p), Some(mesh)) => {
-            preview(mesh, &cameras, last)
+            preview(mesh, cameras, last)
                 .save_png(&files.path(p))
                 .map_err(|e| e.to_string())?;
             Some(p.display().to_string())
@@ -309,7 +264,11 @@ pub fn run(a: Args) -> Result<(), String> {
         "points_per_camera": per_camera,
         "preview": preview_path,
         "camera_file": cams_path.display().to_string(),
-        "seconds": {"simulation": t_sim, "observation": t_obs, "total": t_total.elapsed().as_secs_f64()},
+        "seconds": {
+            "simulation": run.simulation_s,
+            "observation": run.observation_s,
+            "total": t_total.elapsed().as_secs_f64()
+        },
     });
     files.commit()?;
     if a.json {

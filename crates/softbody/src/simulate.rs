@@ -2,11 +2,10 @@
 
 use crate::progress;
 use cutfem::fem::advect::{advect, Diffusion, DIFFUSION_DISTANCE};
-use cutfem::fem::{grid::INACTIVE, Grid};
 use cutfem::render::{render, Camera, Coloring, Ground, Image, RenderItem, RenderOptions};
 use cutfem::scene::Scene;
 use cutfem::sdf::NpyDtype;
-use cutfem::surface::{extract_surface, write_ply, Surface};
+use cutfem::surface::{extract_surface, write_ply};
 use cutfem::TriMesh;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -42,18 +41,6 @@ pub struct Args {
 pub fn default_out(scene: &Path, command: &str) -> PathBuf {
     let stem = scene.file_stem().and_then(|s| s.to_str()).unwrap_or("scene");
     PathBuf::from("out").join(format!("{stem}-{command}"))
-}
-
-/// The surface mesh of the body displaced by `u` (per dof); nodes without a dof do not move.
-pub fn deformed_surface(surface: &Surface, grid: &Grid, u: &gpumat::Matrix<gpumat::Vec3<f64>>) -> TriMesh {
-    surface.deformed(|node| {
-        let d = grid.node_dofs[node];
-        if d == INACTIVE {
-            [0.0; 3]
-        } else {
-            u.get(d as usize, 0, 0).to_array()
-        }
-    })
 }
 
 /// Renders frames side by side, with the ground plane when the model has one.
@@ -131,7 +118,7 @@ pub fn run(a: Args) -> Result<(), String> {
         let p = frames_dir.join(format!("{f:04}.ply"));
         write_ply(mesh, &p).map_err(|e| e.to_string())
     };
-    let m0 = deformed_surface(&surface, &sim.grid, &sim.u);
+    let m0 = sim.grid.deformed(&surface, &sim.u);
     write_frame(0, &m0)?;
     if picks.contains(&0) {
         shown.push((0, m0));
@@ -158,7 +145,7 @@ pub fn run(a: Args) -> Result<(), String> {
             .map_err(|e| format!("step {f}: diffusion: {e}"))?;
         advected = Some(advect(&sim.grid, &band, &u_band).map_err(|e| format!("step {f}: advection: {e}"))?);
         advection += t_adv.elapsed().as_secs_f64();
-        let mesh = deformed_surface(&surface, &sim.grid, &sim.u);
+        let mesh = sim.grid.deformed(&surface, &sim.u);
         write_frame(f, &mesh)?;
         if picks.contains(&f) {
             shown.push((f, mesh));

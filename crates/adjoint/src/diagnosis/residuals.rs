@@ -499,15 +499,6 @@ pub fn surfaces_at(
     for t in 1..=frame {
         sim.step().map_err(|e| format!("step {t}: {e}"))?;
     }
-    let grid = &sim.grid;
-    let u = &sim.u;
-    let deformed = surface.deformed(|node| {
-        let d = grid.node_dofs[node];
-        if d == cutfem::fem::grid::INACTIVE {
-            [0.0; 3]
-        } else {
-            u.get(d as usize, 0, 0).to_array()
-        }
-    });
+    let deformed = sim.grid.deformed(&surface, &sim.u);
     Ok((surface.mesh, deformed))
 }

@@ -58,6 +58,7 @@ use crate::observations::{Observations, ObservedPoint};
 pub(crate) use cutfem::v3::{add, cross, dot, normalize, scale, sub};
 use cutfem::TriMesh;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_6, TAU};
+use std::time::Instant;
 
 /// Tags of the random streams (camera placement, depth noise).
 const PLACEMENT: u64 = 1;
@@ -226,6 +227,77 @@ pub fn record(obs: &mut Observations, frame: usize, per_camera: &[Vec<[f64; 3]>]
     }
 }
 
+/// What [`observe_run`] gives.
+#[derive(Debug)]
+pub struct ObservationRun {
+    /// the points seen, per frame
+    pub observations: Observations,
+    /// the rig, placed around the body's reference bounding-box centre
+    pub cameras: Vec<Camera>,
+    /// the point the cameras look at
+    pub target: [f64; 3],
+    /// the surface at the last frame observed
+    pub last_mesh: Option<TriMesh>,
+    /// seconds spent stepping the simulation and rendering the cameras
+    pub simulation_s: f64,
+    /// seconds spent observing
+    pub observation_s: f64,
+}
+
+/// Runs `sim` from its current state up to the last of `frames` (sorted, each once; frame 0
+/// is the state before the first step) and observes each of `frames` with a rig of `rig`
+/// cameras around the reference surface's bounding-box centre, depth noise `sigma` (seeded
+/// per frame by `rig.seed`). `on_step` is called after each step (progress). The one home of
+/// `softbody observe`, the demo's and the tests' synthetic data.
+pub fn observe_run(
+    sim: &mut cutfem::fem::Simulation,
+    rig: &RigParams,
+    sigma: f64,
+    frames: &[usize],
+    mut on_step: impl FnMut(usize),
+) -> Result<ObservationRun, String> {
+    rig.validate()?;
+    if !(sigma.is_finite() && sigma >= 0.0) {
+        return Err(format!("noise must be non-negative, got {sigma}"));
+    }
+    let surface = sim.grid.surface().map_err(|e| e.to_string())?;
+    let (lo, hi) = surface
+        .mesh
+        .bounding_box()
+        .ok_or("the body has no surface to observe")?;
+    let target = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
+    let cameras = place_cameras(target, rig);
+    let mut run = ObservationRun {
+        observations: Observations::new(),
+        cameras,
+        target,
+        last_mesh: None,
+        simulation_s: 0.0,
+        observation_s: 0.0,
+    };
+    let last = frames.last().copied().unwrap_or(0);
+    for f in 0..=last {
+        if f > 0 {
+            let t = Instant::now();
+            sim.step().map_err(|e| format!("step {f}: {e}"))?;
+            sim.check_finite().map_err(|e| format!("step {f}: {e}"))?;
+            run.simulation_s += t.elapsed().as_secs_f64();
+            on_step(f);
+        }
+        if frames.binary_search(&f).is_ok() {
+            let t = Instant::now();
+            let mesh = sim.grid.deformed(&surface, &sim.u);
+            let seen = observe_mesh(&mesh, &run.cameras, sigma, rig.seed, f);
+            record(&mut run.observations, f, &seen);
+            run.observation_s += t.elapsed().as_secs_f64();
+            if f == last {
+                run.last_mesh = Some(mesh);
+            }
+        }
+    }
+    Ok(run)
+}
+
 /// Simulates `scene` (its model, `steps` steps) and observes frames `1..=steps` with a rig of
 /// `rig` cameras around the body's reference bounding-box center and depth noise `sigma`:
 /// the observations and the cameras (as `softbody observe` writes them). `edit` may change the
@@ -237,35 +309,11 @@ pub fn synthesize(
     steps: usize,
     edit: impl FnOnce(&cutfem::fem::Grid, &mut cutfem::fem::Model),
 ) -> Result<(Observations, Vec<Camera>), String> {
-    rig.validate()?;
-    if !(sigma.is_finite() && sigma >= 0.0) {
-        return Err(format!("noise must be non-negative, got {sigma}"));
-    }
     let mut sim = crate::fit::scene_simulation(scene)?;
     let mut model = sim.model.clone();
     edit(&sim.grid, &mut model);
     sim.reset(model).map_err(|e| e.to_string())?;
-    let surface = sim.grid.surface().map_err(|e| e.to_string())?;
-    let (lo, hi) = surface
-        .mesh
-        .bounding_box()
-        .ok_or("the body has no surface to observe")?;
-    let target = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
-    let cameras = place_cameras(target, rig);
-    let mut obs = Observations::new();
-    for f in 1..=steps {
-        sim.step().map_err(|e| format!("step {f}: {e}"))?;
-        let grid = &sim.grid;
-        let u = &sim.u;
-        let mesh = surface.deformed(|node| {
-            let d = grid.node_dofs[node];
-            if d == cutfem::fem::grid::INACTIVE {
-                [0.0; 3]
-            } else {
-                u.get(d as usize, 0, 0).to_array()
-            }
-        });
-        record(&mut obs, f, &observe_mesh(&mesh, &cameras, sigma, rig.seed, f));
-    }
-    Ok((obs, cameras))
+    let frames: Vec<usize> = (1..=steps).collect();
+    let run = observe_run(&mut sim, rig, sigma, &frames, |_| {})?;
+    Ok((run.observations, run.cameras))
 }

@@ -216,6 +216,19 @@ impl Grid {
             .map_err(Error::Invalid)
     }
 
+    /// `surface` (from [`Grid::surface`]) moved by the displacements `u` of this grid's
+    /// degrees of freedom (grid nodes without one do not move): the body's surface in state `u`.
+    pub fn deformed(
+        &self,
+        surface: &crate::surface::Surface,
+        u: &gpumat::Matrix<Vec3<f64>>,
+    ) -> crate::TriMesh {
+        surface.deformed(|node| match self.node_dofs[node] {
+            INACTIVE => [0.0; 3],
+            d => u.get(d as usize, 0, 0).to_array(),
+        })
+    }
+
     /// Number of degrees of freedom (active nodes).
     pub fn dofs(&self) -> usize {
         self.dof_nodes.len()

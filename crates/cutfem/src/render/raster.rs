@@ -134,7 +134,10 @@ mod tests {
         for pix in 0..w * h {
             let p = [(pix % w) as f64 + 0.5, (pix / w) as f64 + 0.5];
             let inside = (0..4).all(|k| edge(corners[k], corners[(k + 1) % 4], p) > 0.0);
-            assert!(!inside || hits[pix] == 1, "pixel {pix} inside the square not covered");
+            assert!(
+                !inside || hits[pix] == 1,
+                "pixel {pix} inside the square not covered"
+            );
         }
         assert!(covered > 120, "{covered}");
         // the nearer square (depth 1) replaces every covered pixel, the farther never does
