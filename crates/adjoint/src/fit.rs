@@ -1,5 +1,8 @@
 //! Fitting a scene to observations: the problem set up from a scene file, the optimizer
-//! objective around [`Problem`], and the physical-space finite differences of `gradcheck`.
+//! objective around [`Problem`], the physical-space finite differences of `gradcheck`, and
+//! the session's log ([`session`]: `fit.log`, resuming).
+
+pub mod session;
 
 use crate::cost::{ObservedPoint, PointCloudCost, Robust};
 pub use crate::gradcheck::{gradcheck, GradCheck};

@@ -15,10 +15,9 @@ use adjoint::fit::{check_observations, find_evaluation, scene_problem, FitObject
 use adjoint::optim::{minimize, OptimParams, Optimizer};
 use adjoint::problem::Evaluation;
 use cutfem::scene::Scene;
-use serde_json::{json, Map, Value};
-use std::io::Write;
+use serde_json::{json, Value};
 use std::ops::ControlFlow;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// Arguments of `fit`.
@@ -106,15 +105,8 @@ pub fn fit_section(scene: &Scene) -> Result<FitSection, String> {
     Ok(out)
 }
 
-/// `{name: value}` of the fitted physical parameters.
-pub fn values_json(values: &[(String, f64)]) -> Value {
-    Value::Object(
-        values
-            .iter()
-            .map(|(k, v)| (k.clone(), json!(v)))
-            .collect::<Map<_, _>>(),
-    )
-}
+pub use adjoint::fit::session::values_json;
+use adjoint::fit::session::FitLog;
 
 /// `[{frame, rms, points, outside}]` of an evaluation.
 pub fn per_frame_json(ev: &Evaluation) -> Value {
@@ -124,16 +116,6 @@ pub fn per_frame_json(ev: &Evaluation) -> Value {
             .map(|f| json!({"frame": f.frame, "rms": f.rms(), "points": f.count, "outside": f.outside}))
             .collect(),
     )
-}
-
-fn read_log(path: &Path) -> Result<Vec<Value>, String> {
-    let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| serde_json::from_str(l).map_err(|e| format!("{}:{}: {e}", path.display(), i + 1)))
-        .collect()
 }
 
 /// Runs `fit`.
@@ -190,47 +172,20 @@ pub fn run(args: Args) -> Result<(), String> {
     let x_start = problem.x0();
     let initial_values = params.values(&problem.model_at(&x_start));
 
-    // resume: continue from the last logged iteration
-    let mut history: Vec<Value> = Vec::new();
+    // resume: continue from the last logged iteration (the earlier run's log: of a killed
+    // run, else of the report)
     let mut x0 = x_start.clone();
-    if args.resume {
-        // the earlier run's log (of a killed run, else of the report), copied into the new one
-        if let Some(earlier) = dir.resume_file("fit.log") {
-            history = read_log(&earlier)?;
-            std::fs::copy(&earlier, &log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
-        }
-        if let Some(last) = history.last() {
-            let xs: Option<Vec<f64>> = last["x"]
-                .as_array()
-                .and_then(|a| a.iter().map(Value::as_f64).collect());
-            match xs {
-                Some(xs) if xs.len() == x0.len() => x0 = xs,
-                _ => {
-                    return Err(format!(
-                        "{}: the last entry does not match the fitted parameters {}",
-                        log_path.display(),
-                        params.labels().join(",")
-                    ))
-                }
-            }
-        }
-    }
-    // iteration numbers continue the log; a resumed run's iteration 0 repeats its last entry
-    let resumed = !history.is_empty();
-    let offset = history
-        .last()
-        .and_then(|h| h["iteration"].as_u64())
-        .map_or(0, |v| v as usize);
+    let earlier = if args.resume {
+        dir.resume_file("fit.log")
+    } else {
+        None
+    };
+    let mut log = FitLog::begin(&log_path, earlier.as_deref(), &params.labels(), &mut x0)?;
 
     // the start: rms per frame before fitting (and the observations' sanity)
     let ev_initial = check_observations(&mut problem, &obs, &args.problem.observations)?;
 
     let bar = progress::bar(iterations as u64 + 1, "fit", args.json);
-    let mut log = std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(&log_path)
-        .map_err(|e| format!("{}: {e}", log_path.display()))?;
     let base = problem.base.clone();
     let model_at = |x: &[f64]| {
         let mut m = base.clone();
@@ -246,21 +201,10 @@ pub fn run(args: Args) -> Result<(), String> {
     let mut log_error = None;
     let result = minimize(optimizer, &mut objective, &x0, &oparams, &mut |rec| {
         let ev = find_evaluation(&evaluations, &rec.x);
-        let entry = json!({
-            "iteration": offset + rec.iteration,
-            "cost": rec.cost,
-            "rms": ev.as_ref().map(Evaluation::rms),
-            "gradient_norm": rec.gradient_norm,
-            "evaluations": rec.evaluations,
-            "parameters": values_json(&params.values(&model_at(&rec.x))),
-            "x": rec.x,
-        });
-        if !(resumed && rec.iteration == 0) {
-            if let Err(e) = writeln!(log, "{entry}").and_then(|_| log.flush()) {
-                log_error = Some(format!("{}: {e}", log_path.display()));
-                return ControlFlow::Break(());
-            }
-            history.push(entry);
+        let values = params.values(&model_at(&rec.x));
+        if let Err(e) = log.record(rec, ev.as_ref().map(Evaluation::rms), &values) {
+            log_error = Some(e);
+            return ControlFlow::Break(());
         }
         bar.set_position(rec.iteration as u64 + 1);
         bar.set_message(format!("fit {:.3e}", rec.cost));
@@ -308,6 +252,7 @@ pub fn run(args: Args) -> Result<(), String> {
         };
         crate::refine_check::run(&scene, grid, &model, &params, Some(noise), args.json)
     });
+    let history = log.into_history();
     let mut files = crate::fit_report::write(&out, &history, &initial_values, &ev_initial, &ev_final)?;
     if let (Some(u), 2) = (&unc, x_best.len()) {
         let path = out.join("uncertainty.png");

@@ -1,0 +1,182 @@
+//! A fit session's log: `fit.log`, one JSON object per line and iteration
+//! (`{"iteration", "cost", "rms", "gradient_norm", "evaluations", "parameters": {name: value},
+//! "x"}`), appended and flushed as the optimizer goes, so that a killed fit can be resumed.
+//!
+//! Resuming ([`FitLog::begin`] with the earlier log): the earlier entries are copied into the
+//! new log, the optimizer restarts from the last entry's `x` (which must have as many values as
+//! the parameters fitted), iteration numbers continue from the last one, and the restarted
+//! optimizer's iteration 0 (a repeat of the last entry) is not logged again.
+
+use crate::optim::IterationRecord;
+use serde_json::{json, Map, Value};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// `{name: value}` of physical parameters (the log's and the reports' `parameters`).
+pub fn values_json(values: &[(String, f64)]) -> Value {
+    Value::Object(
+        values
+            .iter()
+            .map(|(k, v)| (k.clone(), json!(v)))
+            .collect::<Map<_, _>>(),
+    )
+}
+
+/// Reads a fit log: its entries, blank lines skipped; errors name the file and line.
+pub fn read_log(path: &Path) -> Result<Vec<Value>, String> {
+    let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| serde_json::from_str(l).map_err(|e| format!("{}:{}: {e}", path.display(), i + 1)))
+        .collect()
+}
+
+/// An open fit log (module docs).
+#[derive(Debug)]
+pub struct FitLog {
+    path: PathBuf,
+    file: std::fs::File,
+    history: Vec<Value>,
+    offset: usize,
+    resumed: bool,
+}
+
+impl FitLog {
+    /// Opens the log at `path` (appending). With `earlier` (a resumed fit), its entries are
+    /// copied into `path` and `x0` becomes the last entry's `x`; `labels` name the fitted
+    /// parameters in the error when that `x` does not fit them.
+    pub fn begin(
+        path: &Path,
+        earlier: Option<&Path>,
+        labels: &[String],
+        x0: &mut Vec<f64>,
+    ) -> Result<FitLog, String> {
+        let mut history = Vec::new();
+        if let Some(earlier) = earlier {
+            history = read_log(earlier)?;
+            std::fs::copy(earlier, path).map_err(|e| format!("{}: {e}", path.display()))?;
+        }
+        if let Some(last) = history.last() {
+            let xs: Option<Vec<f64>> = last["x"]
+                .as_array()
+                .and_then(|a| a.iter().map(Value::as_f64).collect());
+            match xs {
+                Some(xs) if xs.len() == x0.len() => *x0 = xs,
+                _ => {
+                    return Err(format!(
+                        "{}: the last entry does not match the fitted parameters {}",
+                        path.display(),
+                        labels.join(",")
+                    ))
+                }
+            }
+        }
+        let offset = history
+            .last()
+            .and_then(|h| h["iteration"].as_u64())
+            .map_or(0, |v| v as usize);
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(FitLog {
+            path: path.to_path_buf(),
+            file,
+            resumed: !history.is_empty(),
+            history,
+            offset,
+        })
+    }
+
+    /// Logs one iteration of the optimizer with its rms (when known) and the physical
+    /// parameter values at its `x`; a resumed fit's iteration 0 is skipped.
+    pub fn record(
+        &mut self,
+        rec: &IterationRecord,
+        rms: Option<f64>,
+        values: &[(String, f64)],
+    ) -> Result<(), String> {
+        if self.resumed && rec.iteration == 0 {
+            return Ok(());
+        }
+        let entry = json!({
+            "iteration": self.offset + rec.iteration,
+            "cost": rec.cost,
+            "rms": rms,
+            "gradient_norm": rec.gradient_norm,
+            "evaluations": rec.evaluations,
+            "parameters": values_json(values),
+            "x": rec.x,
+        });
+        writeln!(self.file, "{entry}")
+            .and_then(|_| self.file.flush())
+            .map_err(|e| format!("{}: {e}", self.path.display()))?;
+        self.history.push(entry);
+        Ok(())
+    }
+
+    /// The entries so far, the earlier run's included.
+    pub fn history(&self) -> &[Value] {
+        &self.history
+    }
+
+    /// The entries, closing the log.
+    pub fn into_history(self) -> Vec<Value> {
+        self.history
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rec(iteration: usize, x: f64) -> IterationRecord {
+        IterationRecord {
+            iteration,
+            cost: 1.0 / (1.0 + iteration as f64),
+            gradient_norm: 0.5,
+            step_norm: 0.0,
+            x: vec![x, 2.0 * x],
+            evaluations: iteration + 1,
+        }
+    }
+
+    #[test]
+    fn a_resumed_log_continues_numbers_and_start_point() {
+        let dir = std::env::temp_dir().join(format!("adjoint-fitlog-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (first, second) = (dir.join("a.log"), dir.join("b.log"));
+        let labels = ["young".to_string(), "poisson".to_string()];
+        let mut x0 = vec![0.0, 0.0];
+        let mut log = FitLog::begin(&first, None, &labels, &mut x0).unwrap();
+        for i in 0..3 {
+            log.record(&rec(i, i as f64), Some(0.1), &[("young".into(), 10.0 * i as f64)])
+                .unwrap();
+        }
+        assert_eq!(x0, vec![0.0, 0.0]);
+        assert_eq!(read_log(&first).unwrap().len(), 3);
+        // resume: restart from the last x, skip the repeated iteration 0, continue numbering
+        let mut x0 = vec![0.0, 0.0];
+        let mut log = FitLog::begin(&second, Some(&first), &labels, &mut x0).unwrap();
+        assert_eq!(x0, vec![2.0, 4.0]);
+        log.record(&rec(0, 2.0), None, &[]).unwrap();
+        log.record(&rec(1, 3.0), None, &[]).unwrap();
+        let entries = read_log(&second).unwrap();
+        let numbers: Vec<u64> = entries.iter().map(|e| e["iteration"].as_u64().unwrap()).collect();
+        assert_eq!(numbers, vec![0, 1, 2, 3]);
+        assert_eq!(log.history().len(), 4);
+        assert_eq!(entries[1]["parameters"]["young"], json!(10.0));
+        // a log of other parameters is refused, naming them
+        let mut x3 = vec![0.0; 3];
+        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &labels, &mut x3).unwrap_err();
+        assert!(err.contains("young,poisson"), "{err}");
+        // a broken line names the file and line
+        std::fs::write(&first, "{\"x\": [1, 2]}\nnot json\n").unwrap();
+        let err = read_log(&first).unwrap_err();
+        assert!(err.contains("a.log:2"), "{err}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
