@@ -238,13 +238,14 @@ pub struct ObservationRun {
     pub target: [f64; 3],
     /// the surface at the last frame observed
     pub last_mesh: Option<TriMesh>,
-    /// seconds spent stepping the simulation and rendering the cameras
+    /// seconds spent stepping the simulation
     pub simulation_s: f64,
-    /// seconds spent observing
+    /// seconds spent observing: the deformed surface, the cameras' depth images, the points
     pub observation_s: f64,
 }
 
-/// Runs `sim` from its current state up to the last of `frames` (sorted, each once; frame 0
+/// Runs `sim` from its current state up to the last of `frames` (sorted ascending, each once:
+/// a frame out of order is not observed; frame 0
 /// is the state before the first step) and observes each of `frames` with a rig of `rig`
 /// cameras around the reference surface's bounding-box centre, depth noise `sigma` (seeded
 /// per frame by `rig.seed`). `on_step` is called after each step (progress). The one home of
