@@ -24,6 +24,7 @@
 
 use crate::observations::Observations;
 use crate::observe::Camera;
+use crate::Error;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -59,19 +60,19 @@ pub struct CameraFile {
 
 impl CameraFile {
     /// Reads and checks a camera file (bounded like every configuration file).
-    pub fn read(path: &Path) -> Result<Self, String> {
+    pub fn read(path: &Path) -> Result<Self, Error> {
         let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+            .map_err(|e| Error::io(path, e))?;
         Self::parse(&text, path)
     }
 
     /// Parses and checks camera file text; `path` names the file in errors.
-    pub fn parse(text: &str, path: &Path) -> Result<Self, String> {
-        let file = path.display();
-        let v: Value = serde_json::from_str(text).map_err(|e| format!("{file}: {e}"))?;
+    pub fn parse(text: &str, path: &Path) -> Result<Self, Error> {
+        let bad = |msg: String| Error::format(path, msg);
+        let v: Value = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
         let cams = v["cameras"]
             .as_array()
-            .ok_or_else(|| format!("{file}: no `cameras` list"))?;
+            .ok_or_else(|| bad("no `cameras` list".into()))?;
         let n = cams.len();
         let mut slots: Vec<Option<(usize, CameraEntry)>> = vec![None; n];
         for (i, c) in cams.iter().enumerate() {
@@ -80,52 +81,52 @@ impl CameraFile {
                 v => match v.as_u64() {
                     Some(id) if (id as usize) < n => id as usize,
                     Some(id) => {
-                        return Err(format!(
-                            "{file}: cameras[{i}].id: {id}, but the {n} cameras need the ids 0..={} (the id indexes the camera)",
+                        return Err(bad(format!(
+                            "cameras[{i}].id: {id}, but the {n} cameras need the ids 0..={} (the id indexes the camera)",
                             n - 1
-                        ))
+                        )))
                     }
                     None => {
-                        return Err(format!(
-                            "{file}: cameras[{i}].id: not a non-negative integer: {}",
+                        return Err(bad(format!(
+                            "cameras[{i}].id: not a non-negative integer: {}",
                             cutfem::scene::quote(&v.to_string(), 40)
-                        ))
+                        )))
                     }
                 },
             };
-            let at = |key: &str| format!("{file}: cameras[{i}].{key}");
+            let at = |key: &str| format!("cameras[{i}].{key}");
             let cam = format!("(camera id {id})");
             if let Some((j, _)) = &slots[id] {
-                return Err(format!(
+                return Err(bad(format!(
                     "{}: {id} is used twice (cameras[{j}] and cameras[{i}]); every camera needs its own id",
                     at("id")
-                ));
+                )));
             }
-            let vector = |key: &str| -> Result<Option<[f64; 3]>, String> {
+            let vector = |key: &str| -> Result<Option<[f64; 3]>, Error> {
                 match &c[key] {
                     Value::Null => Ok(None),
                     Value::Array(a) if a.len() == 3 => {
                         let xs: Option<Vec<f64>> = a.iter().map(Value::as_f64).collect();
                         match xs {
                             Some(x) if x.iter().all(|x| x.is_finite()) => Ok(Some([x[0], x[1], x[2]])),
-                            _ => Err(format!("{}: not three finite numbers {cam}", at(key))),
+                            _ => Err(bad(format!("{}: not three finite numbers {cam}", at(key)))),
                         }
                     }
-                    _ => Err(format!("{}: not a list [x, y, z] {cam}", at(key))),
+                    _ => Err(bad(format!("{}: not a list [x, y, z] {cam}", at(key)))),
                 }
             };
             let eye = vector("eye")?.ok_or_else(|| {
-                format!(
+                bad(format!(
                     "{}: missing: every camera needs an eye [x, y, z] {cam}",
                     at("eye")
-                )
+                ))
             })?;
             let target = vector("target")?;
             if target == Some(eye) {
-                return Err(format!(
+                return Err(bad(format!(
                     "{}: equals the eye: the camera looks nowhere {cam}",
                     at("target")
-                ));
+                )));
             }
             let up = vector("up")?;
             let fov_y = match &c["fov_y"] {
@@ -133,11 +134,11 @@ impl CameraFile {
                 v => match v.as_f64() {
                     Some(f) if f > 0.0 && f < std::f64::consts::PI => Some(f),
                     _ => {
-                        return Err(format!(
+                        return Err(bad(format!(
                             "{}: must be an angle in (0, pi) radians, found {} {cam}",
                             at("fov_y"),
                             cutfem::scene::quote(&v.to_string(), 40)
-                        ))
+                        )))
                     }
                 },
             };
@@ -145,10 +146,10 @@ impl CameraFile {
                 Value::Null => Ok(None),
                 v => match v.as_u64() {
                     Some(p @ 1..=MAX_CAMERA_PIXELS) => Ok(Some(p as usize)),
-                    _ => Err(format!(
+                    _ => Err(bad(format!(
                         "{}: not an integer in 1..={MAX_CAMERA_PIXELS} {cam}",
                         at(key)
-                    )),
+                    ))),
                 },
             };
             let entry = CameraEntry {
@@ -195,15 +196,17 @@ impl CameraFile {
 
     /// The cameras with their intrinsics, indexed by id; errors naming the camera and key when
     /// one lacks `target`, `fov_y`, `width` or `height` (`up` defaults to +y).
-    pub fn cameras(&self) -> Result<Vec<Camera>, String> {
+    pub fn cameras(&self) -> Result<Vec<Camera>, Error> {
         self.cameras
             .iter()
             .enumerate()
-            .map(|(id, c)| -> Result<Camera, String> {
+            .map(|(id, c)| -> Result<Camera, Error> {
                 let missing = |key: &str| {
-                    format!(
-                        "{}: camera id {id}: `{key}` missing (pictures need target, fov_y, width and height)",
-                        self.path.display()
+                    Error::format(
+                        &self.path,
+                        format!(
+                            "camera id {id}: `{key}` missing (pictures need target, fov_y, width and height)"
+                        ),
                     )
                 };
                 Ok(Camera {
@@ -220,7 +223,7 @@ impl CameraFile {
 
     /// Errors unless every camera id that a point of `observations` (read from `csv`) names is
     /// in the file; the message names both files, the id and the CSV line that uses it.
-    pub fn check_used(&self, observations: &Observations, csv: &Path) -> Result<(), String> {
+    pub fn check_used(&self, observations: &Observations, csv: &Path) -> Result<(), Error> {
         let missing = observations
             .frames()
             .flat_map(|(_, p)| p.iter())
@@ -230,14 +233,14 @@ impl CameraFile {
         let Some(id) = missing else { return Ok(()) };
         let line = crate::fit::first_line_with(csv, "camera", u64::from(id))
             .map_or(String::new(), |l| format!(":{l}"));
-        Err(format!(
+        Err(Error::Invalid(format!(
             "{}{line}: camera {id}: no camera with `id` {id} in {} (it has {} cameras, ids 0..{}); \
              give the camera file that belongs to these observations (--cameras)",
             csv.display(),
             self.path.display(),
             self.cameras.len(),
             self.cameras.len()
-        ))
+        )))
     }
 }
 
@@ -245,7 +248,7 @@ impl CameraFile {
 mod tests {
     use super::*;
 
-    fn parse(text: &str) -> Result<CameraFile, String> {
+    fn parse(text: &str) -> Result<CameraFile, Error> {
         CameraFile::parse(text, Path::new("c.json"))
     }
 
@@ -255,18 +258,23 @@ mod tests {
         assert_eq!(f.eyes(), vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]);
         let f = parse(r#"{"cameras": [{"eye": [1, 0, 0]}, {"eye": [2, 0, 0]}]}"#).unwrap();
         assert_eq!(f.eyes()[1], [2.0, 0.0, 0.0]);
-        let e =
-            parse(r#"{"cameras": [{"id": 0, "eye": [1, 0, 0]}, {"id": 0, "eye": [2, 0, 0]}]}"#).unwrap_err();
+        let e = parse(r#"{"cameras": [{"id": 0, "eye": [1, 0, 0]}, {"id": 0, "eye": [2, 0, 0]}]}"#)
+            .unwrap_err()
+            .to_string();
         assert!(
             e.starts_with("c.json: cameras[1].id: 0 is used twice (cameras[0] and cameras[1])"),
             "{e}"
         );
-        let e = parse(r#"{"cameras": [{"id": 5, "eye": [1, 0, 0]}]}"#).unwrap_err();
+        let e = parse(r#"{"cameras": [{"id": 5, "eye": [1, 0, 0]}]}"#)
+            .unwrap_err()
+            .to_string();
         assert!(
             e.starts_with("c.json: cameras[0].id: 5, but the 1 cameras need the ids 0..=0"),
             "{e}"
         );
-        let e = parse(r#"{"cameras": [{"id": -1, "eye": [1, 0, 0]}]}"#).unwrap_err();
+        let e = parse(r#"{"cameras": [{"id": -1, "eye": [1, 0, 0]}]}"#)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("cameras[0].id: not a non-negative integer"), "{e}");
     }
 
@@ -294,17 +302,23 @@ mod tests {
                 "cameras[0].height: not an integer in 1..=8192",
             ),
         ] {
-            let e = parse(&cam(extra)).unwrap_err();
+            let e = parse(&cam(extra)).unwrap_err().to_string();
             assert!(e.contains(needle), "{extra}: {e}");
             assert!(e.starts_with("c.json: "), "{e}");
         }
-        let e = parse(r#"{"cameras": [{"id": 0, "eye": [0, 1e400, 0]}]}"#).unwrap_err();
+        let e = parse(r#"{"cameras": [{"id": 0, "eye": [0, 1e400, 0]}]}"#)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("c.json"), "{e}");
-        let e = parse(r#"{"cameras": [{"id": 0}]}"#).unwrap_err();
+        let e = parse(r#"{"cameras": [{"id": 0}]}"#).unwrap_err().to_string();
         assert!(e.contains("cameras[0].eye: missing"), "{e}");
         // a fit needs only the eyes; pictures need the intrinsics
         let f = parse(&cam("")).unwrap();
-        assert!(f.cameras().unwrap_err().contains("camera id 0: `target` missing"));
+        assert!(f
+            .cameras()
+            .unwrap_err()
+            .to_string()
+            .contains("camera id 0: `target` missing"));
         let f = parse(&cam(
             r#", "target": [0, 0, 0], "fov_y": 0.8, "width": 8, "height": 6"#,
         ))
@@ -322,7 +336,7 @@ mod tests {
         f.check_used(&obs, Path::new("none.csv")).unwrap();
         p.camera = Some(3);
         obs.push(2, p);
-        let e = f.check_used(&obs, Path::new("none.csv")).unwrap_err();
+        let e = f.check_used(&obs, Path::new("none.csv")).unwrap_err().to_string();
         assert!(
             e.starts_with("none.csv: camera 3: no camera with `id` 3 in c.json"),
             "{e}"

@@ -16,6 +16,7 @@
 //!   A point outside every such cell gets the constant (bounded, smooth) cost
 //!   `rho(outside_residual)` and no gradient; it is counted in [`FrameCost::outside`].
 
+use crate::Error;
 use cutfem::fem::advect::Diffusion;
 use cutfem::fem::Grid;
 use gpumat::{Mat3, Matrix, Vec3};
@@ -126,7 +127,7 @@ pub trait Cost: Send + Sync + std::fmt::Debug {
         frame: usize,
         u: &Matrix<Vec3<f64>>,
         grad: Option<&mut Matrix<Vec3<f64>>>,
-    ) -> Result<FrameCost, String>;
+    ) -> Result<FrameCost, Error>;
 
     /// The Gauss-Newton matrix contribution `J^T W J` of `frame` (`n x n`, row-major) for the
     /// displacement sensitivities `du[k] = du/dx_k` (tangent-linear), with `W` the IRLS
@@ -136,7 +137,7 @@ pub trait Cost: Send + Sync + std::fmt::Debug {
         frame: usize,
         u: &Matrix<Vec3<f64>>,
         du: &[Matrix<Vec3<f64>>],
-    ) -> Result<Vec<f64>, String>;
+    ) -> Result<Vec<f64>, Error>;
 }
 
 /// `J^T W J` for residual derivative columns `cols[k][i]` and weights `w[i]`.
@@ -174,7 +175,7 @@ impl Cost for DisplacementCost {
         frame: usize,
         u: &Matrix<Vec3<f64>>,
         grad: Option<&mut Matrix<Vec3<f64>>>,
-    ) -> Result<FrameCost, String> {
+    ) -> Result<FrameCost, Error> {
         let Some((_, w, r)) = self.reference.iter().find(|r| r.0 == frame) else {
             return Ok(FrameCost {
                 frame,
@@ -202,7 +203,7 @@ impl Cost for DisplacementCost {
         frame: usize,
         _u: &Matrix<Vec3<f64>>,
         du: &[Matrix<Vec3<f64>>],
-    ) -> Result<Vec<f64>, String> {
+    ) -> Result<Vec<f64>, Error> {
         let n = du.len();
         let Some((_, w, _)) = self.reference.iter().find(|r| r.0 == frame) else {
             return Ok(vec![0.0; n * n]);
@@ -503,14 +504,14 @@ impl Cost for PointCloudCost {
         frame: usize,
         u: &Matrix<Vec3<f64>>,
         grad: Option<&mut Matrix<Vec3<f64>>>,
-    ) -> Result<FrameCost, String> {
-        let u_slots = self.band.diffuse(u).map_err(|e| e.to_string())?;
+    ) -> Result<FrameCost, Error> {
+        let u_slots = self.band.diffuse(u)?;
         match grad {
             None => Ok(self.frame_cost_slots(frame, &u_slots, None).0),
             Some(g) => {
                 let mut gs = vec![Vec3::default(); u_slots.len()];
                 let (fc, _) = self.frame_cost_slots(frame, &u_slots, Some(&mut gs));
-                let ga = self.band.diffuse_adjoint(&gs).map_err(|e| e.to_string())?;
+                let ga = self.band.diffuse_adjoint(&gs)?;
                 g.assign_with(|g| g + ga.ex());
                 Ok(fc)
             }
@@ -522,11 +523,11 @@ impl Cost for PointCloudCost {
         frame: usize,
         u: &Matrix<Vec3<f64>>,
         du: &[Matrix<Vec3<f64>>],
-    ) -> Result<Vec<f64>, String> {
-        let u_slots = self.band.diffuse(u).map_err(|e| e.to_string())?;
+    ) -> Result<Vec<f64>, Error> {
+        let u_slots = self.band.diffuse(u)?;
         let d_slots: Vec<Vec<Vec3<f64>>> = du
             .iter()
-            .map(|d| self.band.diffuse(d).map_err(|e| e.to_string()))
+            .map(|d| self.band.diffuse(d))
             .collect::<Result<_, _>>()?;
         let points = self.points(frame);
         let hits = self.locate(frame, &u_slots);

@@ -22,6 +22,7 @@
 //! that from every triangle gets the constant cost `rho(2h)` and no gradient.
 
 use crate::cost::{frame_points, gauss_newton_matrix, Cost, FrameCost, ObservedPoint, Robust};
+use crate::Error;
 use bins::FaceBins;
 use cutfem::fem::grid::INACTIVE;
 use cutfem::fem::Grid;
@@ -168,15 +169,11 @@ pub fn ray_triangle(
 
 impl SurfaceCost {
     /// The cost of the observed `frames` against the marching-cubes surface of `grid`'s SDF.
-    pub fn new(
-        grid: &Grid,
-        frames: Vec<(usize, Vec<ObservedPoint>)>,
-        robust: Robust,
-    ) -> Result<Self, String> {
+    pub fn new(grid: &Grid, frames: Vec<(usize, Vec<ObservedPoint>)>, robust: Robust) -> Result<Self, Error> {
         if grid.dofs() == 0 {
-            return Err("surface cost: the body has no degrees of freedom".into());
+            return Err(Error::invalid("surface cost: the body has no degrees of freedom"));
         }
-        let surface = grid.surface().map_err(|e| e.to_string())?;
+        let surface = grid.surface()?;
         // a node without a degree of freedom (an edge touching the surface only within the
         // snapping tolerance) does not move, as in `softbody simulate`
         let vertex_dofs = surface
@@ -357,7 +354,7 @@ impl Cost for SurfaceCost {
         frame: usize,
         u: &Matrix<Vec3<f64>>,
         grad: Option<&mut Matrix<Vec3<f64>>>,
-    ) -> Result<FrameCost, String> {
+    ) -> Result<FrameCost, Error> {
         let points = self.points(frame);
         let hits = self.residuals(frame, u);
         let residuals = hits.iter().map(|h| h.map(|h| h.residual));
@@ -378,7 +375,7 @@ impl Cost for SurfaceCost {
         frame: usize,
         u: &Matrix<Vec3<f64>>,
         du: &[Matrix<Vec3<f64>>],
-    ) -> Result<Vec<f64>, String> {
+    ) -> Result<Vec<f64>, Error> {
         let points = self.points(frame);
         let hits = self.residuals(frame, u);
         let mut cols = vec![Vec::with_capacity(points.len()); du.len()];

@@ -11,6 +11,7 @@ use crate::optim::{EvalError, GaussNewtonObjective, GnEval, Objective};
 use crate::params::ParamSet;
 use crate::problem::{Evaluation, Problem};
 pub use crate::statistics::{invert_small, uncertainty, Uncertainty};
+use crate::Error;
 use cutfem::fem::advect::Diffusion;
 use cutfem::fem::{Grid, Model, Simulation};
 use cutfem::scene::Scene;
@@ -21,8 +22,8 @@ pub fn point_cloud_cost(
     grid: &Grid,
     observations: &Observations,
     robust: Robust,
-) -> Result<PointCloudCost, String> {
-    let band = Diffusion::new(grid).map_err(|e| e.to_string())?;
+) -> Result<PointCloudCost, Error> {
+    let band = Diffusion::new(grid)?;
     Ok(PointCloudCost::new(
         grid,
         band,
@@ -36,13 +37,13 @@ pub fn point_cloud_cost(
 /// ([`crate::diagnosis::effects::Effect::apply_to_model`], e.g. `wind`'s external force), for
 /// the effects of [`crate::diagnosis::effects::extended_catalogue`]. Refuses effect names and
 /// sections that no effect claims ([`crate::diagnosis::effects::check_extensions`]).
-pub fn scene_model(scene: &Scene, grid: &Grid) -> Result<Model, String> {
+pub fn scene_model(scene: &Scene, grid: &Grid) -> Result<Model, Error> {
     crate::diagnosis::effects::check_extensions(scene)?;
     let mut model = scene.to_model();
     for e in crate::diagnosis::effects::extended_catalogue() {
         if scene.effect_on(e.name()) {
             e.apply_to_model(scene, grid, &mut model)
-                .map_err(|why| format!("{}: {why}", e.name()))?;
+                .map_err(|why| Error::invalid(format!("{}: {why}", e.name())))?;
         }
     }
     Ok(model)
@@ -51,11 +52,11 @@ pub fn scene_model(scene: &Scene, grid: &Grid) -> Result<Model, String> {
 /// The simulation of a scene (its grid, model and solver settings): the one place where every
 /// command (`simulate`, `observe`, `fit`, `gradcheck`, `diagnose`, the synthetic data) builds
 /// it, `[numerics]` included. Errors name the scene file.
-pub fn scene_simulation(scene: &Scene) -> Result<Simulation, String> {
-    let grid = scene.grid().map_err(|e| e.to_string())?;
-    let model = scene_model(scene, &grid).map_err(|e| format!("{}: {e}", scene.path.display()))?;
+pub fn scene_simulation(scene: &Scene) -> Result<Simulation, Error> {
+    let grid = scene.grid()?;
+    let model = scene_model(scene, &grid).map_err(|e| Error::format(&scene.path, e.to_string()))?;
     // a model that cannot be simulated names the scene and the key
-    let mut sim = Simulation::new(grid, model).map_err(|e| format!("{}: {e}", scene.path.display()))?;
+    let mut sim = Simulation::new(grid, model).map_err(|e| Error::format(&scene.path, e.to_string()))?;
     sim.solver = solver_settings(scene, sim.solver);
     Ok(sim)
 }
@@ -82,12 +83,14 @@ pub enum CostKind {
 }
 
 impl std::str::FromStr for CostKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self, Error> {
         match s {
             "surface" => Ok(CostKind::Surface),
             "levelset" => Ok(CostKind::LevelSet),
-            _ => Err(format!("unknown cost `{s}` (known: surface, levelset)")),
+            _ => Err(Error::Invalid(format!(
+                "unknown cost `{s}` (known: surface, levelset)"
+            ))),
         }
     }
 }
@@ -129,7 +132,7 @@ pub fn scene_problem(
     steps: Option<usize>,
     kind: CostKind,
     eyes: &[[f64; 3]],
-) -> Result<Problem, String> {
+) -> Result<Problem, Error> {
     scene_problem_reach(scene, observations, params, robust, steps, kind, eyes, None)
 }
 
@@ -145,7 +148,7 @@ pub fn scene_problem_reach(
     kind: CostKind,
     eyes: &[[f64; 3]],
     reach: Option<f64>,
-) -> Result<Problem, String> {
+) -> Result<Problem, Error> {
     let sim = scene_simulation(scene)?;
     let mut params = params;
     if params.params.contains(&crate::params::Param::StiffnessField) {
@@ -169,8 +172,8 @@ pub fn scene_problem_reach(
     };
     let steps = steps.unwrap_or(scene.time.steps);
     crate::problem::check_memory(steps, sim.grid.dof_nodes.len())
-        .map_err(|e| format!("{}: {e}", scene.path.display()))?;
-    Problem::new(sim, params, cost, steps).map_err(|e| e.to_string())
+        .map_err(|e| Error::format(&scene.path, e.to_string()))?;
+    Problem::new(sim, params, cost, steps)
 }
 
 /// Evaluations kept by `x`, shared with the caller's iteration callback.
@@ -197,14 +200,14 @@ pub fn first_line_with(path: &std::path::Path, column: &str, value: u64) -> Opti
 }
 
 /// Errors (naming the file and line) when an observed frame lies beyond `steps`.
-pub fn check_frames(observations: &Observations, path: &std::path::Path, steps: usize) -> Result<(), String> {
+pub fn check_frames(observations: &Observations, path: &std::path::Path, steps: usize) -> Result<(), Error> {
     match observations.last_frame() {
         Some(last) if last > steps => {
             let line = frame_line(path, last).map_or(String::new(), |l| format!(":{l}"));
-            Err(format!(
+            Err(Error::Invalid(format!(
                 "{}{line}: frame {last} lies beyond the {steps} simulated steps (raise [time].steps or pass --steps)",
                 path.display()
-            ))
+            )))
         }
         _ => Ok(()),
     }
@@ -217,20 +220,20 @@ pub fn check_observations(
     problem: &mut Problem,
     observations: &Observations,
     path: &std::path::Path,
-) -> Result<Evaluation, String> {
+) -> Result<Evaluation, Error> {
     check_frames(observations, path, problem.steps)?;
     let ev = problem
         .evaluate(&problem.x0())
-        .map_err(|e| format!("the starting model: {e}"))?;
+        .map_err(|e| Error::invalid(format!("the starting model: {e}")))?;
     let (outside, count) = ev
         .frames
         .iter()
         .fold((0, 0), |(o, c), f| (o + f.outside, c + f.count));
     if count > 0 && outside == count {
-        return Err(format!(
+        return Err(Error::Invalid(format!(
             "{}: none of the {count} observed points lies within reach (two cells) of the simulated surface at the starting parameters; check their units, frames and coordinate frame",
             path.display()
-        ));
+        )));
     }
     Ok(ev)
 }

@@ -7,6 +7,7 @@
 use crate::fit::{get_physical, set_physical};
 use crate::problem::Problem;
 use crate::taylor::{analyse, Sample, Sweep};
+use crate::Error;
 
 /// One parameter component of a gradient check.
 #[derive(Clone, Debug, PartialEq)]
@@ -33,10 +34,10 @@ pub struct GradCheck {
 /// of 0; a Poisson ratio's steps stay inside (0, 0.5); the stiffness field's coefficients (log
 /// factors) are stepped in the coordinate itself, not below 1e-6. A step whose evaluation fails
 /// is skipped and reported; a component without any successful step is an error.
-pub fn gradcheck(problem: &mut Problem, rel_steps: &[f64]) -> Result<Vec<GradCheck>, String> {
+pub fn gradcheck(problem: &mut Problem, rel_steps: &[f64]) -> Result<Vec<GradCheck>, Error> {
     let x0 = problem.x0();
     let model0 = problem.model_at(&x0);
-    let (ev0, _, pg) = problem.gradient(&x0).map_err(|e| e.to_string())?;
+    let (ev0, _, pg) = problem.gradient(&x0)?;
     let j0 = ev0.cost;
     let adjoint = problem.params.physical(&model0, &pg);
     let mut out = Vec::new();
@@ -46,11 +47,14 @@ pub fn gradcheck(problem: &mut Problem, rel_steps: &[f64]) -> Result<Vec<GradChe
         let mut failed = Vec::new();
         if name.starts_with("stiffness_field[") {
             // a coefficient (log factor): differences in the coordinate itself
-            let k = labels.iter().position(|l| *l == name).ok_or("field label")?;
-            let mut at = |d: f64| -> Result<f64, String> {
+            let k = labels
+                .iter()
+                .position(|l| *l == name)
+                .ok_or_else(|| Error::invalid("field label"))?;
+            let mut at = |d: f64| -> Result<f64, Error> {
                 let mut x = x0.clone();
                 x[k] += d;
-                problem.evaluate(&x).map(|e| e.cost).map_err(|e| e.to_string())
+                problem.evaluate(&x).map(|e| e.cost)
             };
             for &rel in rel_steps {
                 let step = rel.max(1e-6);
@@ -59,18 +63,16 @@ pub fn gradcheck(problem: &mut Problem, rel_steps: &[f64]) -> Result<Vec<GradChe
                 }
                 match at(step).and_then(|p| Ok((p, at(-step)?))) {
                     Ok((plus, minus)) => samples.push(Sample { step, plus, minus }),
-                    Err(e) => failed.push((step, e)),
+                    Err(e) => failed.push((step, e.to_string())),
                 }
             }
         } else {
-            let v = get_physical(&model0, &name).ok_or_else(|| format!("unknown component {name}"))?;
-            let mut cost_at = |val: f64| -> Result<f64, String> {
+            let v = get_physical(&model0, &name)
+                .ok_or_else(|| Error::Invalid(format!("unknown component {name}")))?;
+            let mut cost_at = |val: f64| -> Result<f64, Error> {
                 let mut m = model0.clone();
                 set_physical(&mut m, &name, val);
-                problem
-                    .evaluate_model(m)
-                    .map(|e| e.cost)
-                    .map_err(|e| e.to_string())
+                problem.evaluate_model(m).map(|e| e.cost)
             };
             for &rel in rel_steps {
                 let mut step = rel * v.abs().max(if v.abs() > 0.0 { 0.0 } else { 1.0 });
@@ -82,7 +84,7 @@ pub fn gradcheck(problem: &mut Problem, rel_steps: &[f64]) -> Result<Vec<GradChe
                 }
                 match cost_at(v + step).and_then(|p| Ok((p, cost_at(v - step)?))) {
                     Ok((plus, minus)) => samples.push(Sample { step, plus, minus }),
-                    Err(e) => failed.push((step, e)),
+                    Err(e) => failed.push((step, e.to_string())),
                 }
             }
         }
@@ -90,7 +92,9 @@ pub fn gradcheck(problem: &mut Problem, rel_steps: &[f64]) -> Result<Vec<GradChe
             let why = failed
                 .first()
                 .map_or("no step".to_string(), |(h, e)| format!("step {h:e}: {e}"));
-            format!("{name}: no step of the gradient check could be evaluated ({why})")
+            Error::invalid(format!(
+                "{name}: no step of the gradient check could be evaluated ({why})"
+            ))
         })?;
         let best = &sweep.steps[sweep.best];
         out.push(GradCheck {

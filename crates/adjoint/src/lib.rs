@@ -34,6 +34,7 @@ pub mod camera_file;
 pub mod cost;
 pub mod cost_mesh;
 pub mod diagnosis;
+pub mod error;
 pub mod fit;
 pub mod gradcheck;
 pub mod local;
@@ -46,3 +47,5 @@ pub mod refine;
 pub mod statistics;
 pub mod tangent;
 pub mod taylor;
+
+pub use error::Error;

@@ -23,9 +23,10 @@
 //! one and `weight` when some weight differs from 1; numbers are written in Rust's
 //! shortest round-trip form, so reading a written file gives back the same set.
 
+use crate::Error;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// One observed surface point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,29 +55,6 @@ impl ObservedPoint {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Observations {
     frames: BTreeMap<usize, Vec<ObservedPoint>>,
-}
-
-/// Reading or writing an observation file failed.
-#[derive(Debug, thiserror::Error)]
-pub enum ObservationError {
-    /// The file could not be read or written.
-    #[error("{}: {source}", path.display())]
-    Io {
-        /// the file
-        path: PathBuf,
-        /// the cause
-        source: std::io::Error,
-    },
-    /// A line could not be parsed.
-    #[error("{}: line {line}: {msg}", path.display())]
-    Parse {
-        /// the file
-        path: PathBuf,
-        /// 1-based line number
-        line: usize,
-        /// what is wrong
-        msg: String,
-    },
 }
 
 /// The smallest largest weight a usable observation set may have: `sqrt(f64::MIN_POSITIVE)`
@@ -155,7 +133,7 @@ impl Observations {
     /// reference configuration, which no parameter changes; a frame beyond the steps is never
     /// simulated). The largest weight of those points must be at least [`MIN_USEFUL_WEIGHT`].
     /// The message counts the points of each kind that cannot.
-    pub fn check_informative(&self, path: &Path, steps: usize) -> Result<(), String> {
+    pub fn check_informative(&self, path: &Path, steps: usize) -> Result<(), Error> {
         let (mut total, mut zero, mut at0, mut beyond, mut usable) = (0usize, 0usize, 0usize, 0usize, 0usize);
         let mut w_max = 0.0f64;
         for (f, pts) in self.frames() {
@@ -173,10 +151,10 @@ impl Observations {
                 }
             }
         }
-        let file = path.display();
         if total == 0 {
-            return Err(format!(
-                "{file}: no observed point (only a header): nothing to fit"
+            return Err(Error::format(
+                path,
+                "no observed point (only a header): nothing to fit",
             ));
         }
         if usable == 0 {
@@ -192,37 +170,42 @@ impl Observations {
             if beyond > 0 {
                 why.push(format!("{beyond} lie beyond the {steps} simulated steps"));
             }
-            return Err(format!(
-                "{file}: none of the {total} observed points can inform the fit: {}; \
+            return Err(Error::format(
+                path,
+                format!(
+                    "none of the {total} observed points can inform the fit: {}; \
                  observations need a positive weight and a frame in 1..={steps}",
-                why.join(", ")
+                    why.join(", ")
+                ),
             ));
         }
         if w_max < MIN_USEFUL_WEIGHT {
-            return Err(format!(
-                "{file}: the largest weight of the {usable} usable points is {w_max:e}, below {MIN_USEFUL_WEIGHT:e}: \
+            return Err(Error::format(
+                path,
+                format!(
+                "the largest weight of the {usable} usable points is {w_max:e}, below {MIN_USEFUL_WEIGHT:e}: \
                  the squares of the cost's terms underflow; rescale the weights (only their ratios matter)"
+            ),
             ));
         }
         Ok(())
     }
 
     /// Reads a CSV file (see the module docs for the format).
-    pub fn read_csv(path: impl AsRef<Path>) -> Result<Self, ObservationError> {
+    pub fn read_csv(path: impl AsRef<Path>) -> Result<Self, Error> {
         let path = path.as_ref();
-        let bytes = cutfem::input::read_text(path, cutfem::input::MAX_DATA_BYTES).map_err(|source| {
-            ObservationError::Io {
+        let bytes =
+            cutfem::input::read_text(path, cutfem::input::MAX_DATA_BYTES).map_err(|source| Error::Io {
                 path: path.to_path_buf(),
                 source,
-            }
-        })?;
+            })?;
         let text = String::from_utf8(bytes).map_err(|e| {
             let line = e.as_bytes()[..e.utf8_error().valid_up_to()]
                 .iter()
                 .filter(|&&b| b == b'\n')
                 .count()
                 + 1;
-            ObservationError::Parse {
+            Error::Parse {
                 path: path.to_path_buf(),
                 line,
                 msg: "not UTF-8 text".into(),
@@ -232,8 +215,8 @@ impl Observations {
     }
 
     /// Parses CSV text; `path` names the file in errors.
-    pub fn parse_csv(text: &str, path: &Path) -> Result<Self, ObservationError> {
-        let err = |line: usize, msg: String| ObservationError::Parse {
+    pub fn parse_csv(text: &str, path: &Path) -> Result<Self, Error> {
+        let err = |line: usize, msg: String| Error::Parse {
             path: path.to_path_buf(),
             line,
             msg,
@@ -284,9 +267,9 @@ impl Observations {
     }
 
     /// Writes the set as a CSV file.
-    pub fn write_csv(&self, path: impl AsRef<Path>) -> Result<(), ObservationError> {
+    pub fn write_csv(&self, path: impl AsRef<Path>) -> Result<(), Error> {
         let path = path.as_ref();
-        std::fs::write(path, self.to_csv()).map_err(|source| ObservationError::Io {
+        std::fs::write(path, self.to_csv()).map_err(|source| Error::Io {
             path: path.to_path_buf(),
             source,
         })
@@ -419,22 +402,31 @@ mod tests {
         let check = |text: &str| parse(text).unwrap().check_informative(Path::new("o.csv"), 4);
         check("frame,x,y,z\n1,0,0,0\n").unwrap();
         check("frame,x,y,z,weight\n4,0,0,0,1e-150\n0,0,0,0,1\n").unwrap();
-        let e = check("frame,x,y,z,weight\n1,0,0,0,0\n0,0,0,0,2\n").unwrap_err();
+        let e = check("frame,x,y,z,weight\n1,0,0,0,0\n0,0,0,0,2\n")
+            .unwrap_err()
+            .to_string();
         assert!(
             e.starts_with(
                 "o.csv: none of the 2 observed points can inform the fit: 1 have weight 0, 1 lie at frame 0"
             ),
             "{e}"
         );
-        let e = check("frame,x,y,z,weight\n2,0,0,0,1e-160\n").unwrap_err();
+        let e = check("frame,x,y,z,weight\n2,0,0,0,1e-160\n")
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("largest weight of the 1 usable points is 1e-160"),
             "{e}"
         );
-        let e = check("frame,x,y,z\n9,0,0,0\n").unwrap_err();
+        let e = check("frame,x,y,z\n9,0,0,0\n").unwrap_err().to_string();
         assert!(e.contains("1 lie beyond the 4 simulated steps"), "{e}");
-        assert!(check("frame,x,y,z\n").unwrap_err().contains("no observed point"));
-        let e = parse("frame,x,y,z,weight\n1,0,0,0,5e-324\n").unwrap_err();
+        assert!(check("frame,x,y,z\n")
+            .unwrap_err()
+            .to_string()
+            .contains("no observed point"));
+        let e = parse("frame,x,y,z,weight\n1,0,0,0,5e-324\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2: weight 5e-324 is subnormal"), "{e}");
     }
 
@@ -532,6 +524,7 @@ mod tests {
         // missing file: one line with the path
         let e = Observations::read_csv(dir.join("missing.csv"))
             .unwrap_err()
+            .to_string()
             .to_string();
         assert!(e.contains("missing.csv") && e.lines().count() == 1, "{e}");
         std::fs::write(&path, b"frame,x,y,z\n0,1,2,\xff\n").unwrap();

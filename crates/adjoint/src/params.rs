@@ -15,6 +15,7 @@
 //! `dlambda/dnu = E(1+2nu^2)/((1+nu)(1-2nu))^2`, `dmu/dnu = -E/(2(1+nu)^2)`.
 
 use crate::backward::PhysicalGradient;
+use crate::Error;
 use cutfem::fem::Model;
 use gpumat::Vec3;
 use std::fmt;
@@ -118,15 +119,15 @@ impl fmt::Display for Param {
 }
 
 impl FromStr for Param {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self, Error> {
         ALL.iter().copied().find(|p| p.name() == s).ok_or_else(|| {
             let names: Vec<_> = ALL.iter().map(|p| p.name()).collect();
-            format!(
+            Error::invalid(format!(
                 "unknown parameter `{}` (known: {})",
                 cutfem::scene::quote(s, cutfem::scene::MAX_QUOTE),
                 names.join(", ")
-            )
+            ))
         })
     }
 }
@@ -158,19 +159,19 @@ pub struct ParamSet {
 
 impl ParamSet {
     /// Parses a comma-separated list (or a list of names).
-    pub fn parse<S: AsRef<str>>(names: &[S]) -> Result<Self, String> {
+    pub fn parse<S: AsRef<str>>(names: &[S]) -> Result<Self, Error> {
         let mut params = Vec::new();
         for n in names {
             for part in n.as_ref().split(',').map(str::trim).filter(|s| !s.is_empty()) {
                 let p: Param = part.parse()?;
                 if params.contains(&p) {
-                    return Err(format!("parameter `{p}` given twice"));
+                    return Err(Error::Invalid(format!("parameter `{p}` given twice")));
                 }
                 params.push(p);
             }
         }
         if params.is_empty() {
-            return Err("no parameters to fit".into());
+            return Err(Error::invalid("no parameters to fit"));
         }
         Ok(Self { params, field: None })
     }
@@ -209,33 +210,35 @@ impl ParamSet {
     }
 
     /// Checks that the model has what the parameters need (e.g. a ground plane).
-    pub fn check(&self, model: &Model) -> Result<(), String> {
+    pub fn check(&self, model: &Model) -> Result<(), Error> {
         for p in &self.params {
             if let Param::ExternalForce(n) = *p {
                 match &model.external_force {
                     None => {
-                        return Err("fitting `external_force` needs an effect that adds one (e.g. `wind` \
-                                    in [model].effects with a [wind] section)"
-                            .into())
+                        return Err(Error::invalid(
+                            "fitting `external_force` needs an effect that adds one (e.g. `wind` \
+                             in [model].effects with a [wind] section)",
+                        ))
                     }
                     Some(e) if e.len() != n => {
-                        return Err(format!(
+                        return Err(Error::Invalid(format!(
                             "external_force: {n} components for the model's {} coefficients (call ParamSet::resolve)",
                             e.len()
-                        ))
+                        )))
                     }
                     _ => {}
                 }
             }
         }
         if self.params.contains(&Param::StiffnessField) && self.field.is_none() {
-            return Err(
-                "fitting `stiffness_field` needs its basis ([model].stiffness_field = { cells = [...] })"
-                    .into(),
-            );
+            return Err(Error::invalid(
+                "fitting `stiffness_field` needs its basis ([model].stiffness_field = { cells = [...] })",
+            ));
         }
         if self.params.contains(&Param::Ground) && model.ground.is_none() {
-            return Err("fitting `ground` needs a [ground] section and `ground` in [model].effects".into());
+            return Err(Error::invalid(
+                "fitting `ground` needs a [ground] section and `ground` in [model].effects",
+            ));
         }
         Ok(())
     }

@@ -18,20 +18,10 @@
 use crate::backward::{initial_velocity_adjoint, step_adjoint, PhysicalGradient};
 use crate::cost::{Cost, FrameCost};
 use crate::params::ParamSet;
+use crate::Error;
 use cutfem::fem::{Model, Simulation};
 use gpumat::{Matrix, Vec3};
 use std::time::Instant;
-
-/// Why an evaluation failed.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum ProblemError {
-    /// the forward simulation diverged (non-finite or exploding displacement, failed solve)
-    #[error("forward simulation diverged: {0}")]
-    Diverged(String),
-    /// invalid parameters or inputs
-    #[error("{0}")]
-    Invalid(String),
-}
 
 /// The result of one evaluation.
 #[derive(Clone, Debug)]
@@ -73,17 +63,17 @@ impl Evaluation {
 
 /// Errors (naming `time.steps`) when `steps` steps of a body of `dofs` nodes need more memory
 /// than is available: the adjoint keeps `u` and `v` of every frame, 3 f64 per node each.
-pub fn check_memory(steps: usize, dofs: usize) -> Result<(), String> {
+pub fn check_memory(steps: usize, dofs: usize) -> Result<(), Error> {
     let bytes = (steps as u128 + 1) * dofs as u128 * 48;
     match cutfem::fem::grid::available_memory() {
         Some(avail) if bytes > avail as u128 => {
             let gib = |b: u128| b as f64 / (1u64 << 30) as f64;
-            Err(format!(
+            Err(Error::Invalid(format!(
                 "time.steps: {steps} steps of {dofs} nodes keep {:.1} GiB of states for the adjoint, \
                  more than the {:.1} GiB available; lower the steps or the resolution",
                 gib(bytes),
                 gib(avail as u128)
-            ))
+            )))
         }
         _ => Ok(()),
     }
@@ -135,24 +125,19 @@ impl Problem {
     /// Sets up a problem. Errors when an observed frame lies beyond `steps` or a parameter
     /// needs an effect the model lacks. The external force's coefficient count is taken from
     /// the model ([`ParamSet::resolve`]).
-    pub fn new(
-        sim: Simulation,
-        params: ParamSet,
-        cost: Box<dyn Cost>,
-        steps: usize,
-    ) -> Result<Self, ProblemError> {
+    pub fn new(sim: Simulation, params: ParamSet, cost: Box<dyn Cost>, steps: usize) -> Result<Self, Error> {
         let base = sim.model.clone();
         let mut params = params;
         params.resolve(&base);
-        params.check(&base).map_err(ProblemError::Invalid)?;
+        params.check(&base)?;
         if let Some(&last) = cost.frames().last() {
             if last > steps {
-                return Err(ProblemError::Invalid(format!(
+                return Err(Error::Invalid(format!(
                     "observations: frame {last} lies beyond the {steps} simulated steps (raise [time].steps or --steps)"
                 )));
             }
         }
-        check_memory(steps * base.substeps, sim.grid.dof_nodes.len()).map_err(ProblemError::Invalid)?;
+        check_memory(steps * base.substeps, sim.grid.dof_nodes.len())?;
         let size = {
             let s = &sim.grid.sdf;
             let d = s.dims;
@@ -185,15 +170,11 @@ impl Problem {
         m
     }
 
-    fn forward(
-        &mut self,
-        model: Model,
-        store: bool,
-    ) -> Result<(Evaluation, Option<Trajectory>), ProblemError> {
+    fn forward(&mut self, model: Model, store: bool) -> Result<(Evaluation, Option<Trajectory>), Error> {
         let t0 = Instant::now();
         self.sim
             .reset(model.clone())
-            .map_err(|e| ProblemError::Invalid(e.to_string()))?;
+            .map_err(|e| Error::Invalid(e.to_string()))?;
         let frames = self.cost.frames();
         let mut ev = Evaluation {
             cost: 0.0,
@@ -217,12 +198,12 @@ impl Problem {
                 let info = self
                     .sim
                     .substep()
-                    .map_err(|e| ProblemError::Diverged(format!("step {t}: {e}")))?;
+                    .map_err(|e| Error::Diverged(format!("step {t}: {e}")))?;
                 ev.forward_iterations += info.iterations;
                 ev.fallbacks += usize::from(info.fallback);
                 let m = self.sim.max_displacement();
                 if !m.is_finite() || m > self.divergence_limit {
-                    return Err(ProblemError::Diverged(format!(
+                    return Err(Error::Diverged(format!(
                         "step {t}: displacement {m:.3e} exceeds {:.3e} ({})",
                         self.divergence_limit,
                         self.sim.scales_note()
@@ -238,7 +219,7 @@ impl Problem {
                 let fc = self
                     .cost
                     .frame_cost(f, &self.sim.u, None)
-                    .map_err(|e| ProblemError::Diverged(format!("frame {f}: {e}")))?;
+                    .map_err(|e| Error::Diverged(format!("frame {f}: {e}")))?;
                 cost_s += tc.elapsed().as_secs_f64();
                 ev.cost += fc.cost;
                 ev.frames.push(fc);
@@ -250,18 +231,18 @@ impl Problem {
     }
 
     /// The cost of a given model (forward run only).
-    pub fn evaluate_model(&mut self, model: Model) -> Result<Evaluation, ProblemError> {
+    pub fn evaluate_model(&mut self, model: Model) -> Result<Evaluation, Error> {
         Ok(self.forward(model, false)?.0)
     }
 
     /// The cost at `x` (forward run only).
-    pub fn evaluate(&mut self, x: &[f64]) -> Result<Evaluation, ProblemError> {
+    pub fn evaluate(&mut self, x: &[f64]) -> Result<Evaluation, Error> {
         let model = self.model_at(x);
         Ok(self.forward(model, false)?.0)
     }
 
     /// The cost at `x` and its adjoint gradient with respect to `x` (and the physical one).
-    pub fn gradient(&mut self, x: &[f64]) -> Result<(Evaluation, Vec<f64>, PhysicalGradient), ProblemError> {
+    pub fn gradient(&mut self, x: &[f64]) -> Result<(Evaluation, Vec<f64>, PhysicalGradient), Error> {
         let model = self.model_at(x);
         let (mut ev, traj) = self.forward(model.clone(), true)?;
         let mut traj = traj.expect("stored");
@@ -275,12 +256,12 @@ impl Problem {
         let last = self.integrator_steps();
         // dJ/du(t) of an observed frame, recomputed from the stored state
         let mut cost_grad =
-            |cost: &dyn Cost, t: usize, u: &Matrix<Vec3<f64>>| -> Result<Matrix<Vec3<f64>>, ProblemError> {
+            |cost: &dyn Cost, t: usize, u: &Matrix<Vec3<f64>>| -> Result<Matrix<Vec3<f64>>, Error> {
                 let mut g = Matrix::zeros(n, 1, 1);
                 if let Some(f) = observed_frame(&frames, t, substeps) {
                     let tc = Instant::now();
                     cost.frame_cost(f, u, Some(&mut g))
-                        .map_err(|e| ProblemError::Diverged(format!("frame {f}: {e}")))?;
+                        .map_err(|e| Error::Diverged(format!("frame {f}: {e}")))?;
                     cost_s += tc.elapsed().as_secs_f64();
                 }
                 Ok(g)
@@ -304,7 +285,7 @@ impl Problem {
             let (its, _, fallback) = self
                 .sim
                 .solve_newmark(&g, &mut lam)
-                .map_err(|e| ProblemError::Diverged(format!("adjoint step {step}: {e}")))?;
+                .map_err(|e| Error::Diverged(format!("adjoint step {step}: {e}")))?;
             ev.backward_iterations += its;
             ev.fallbacks += usize::from(fallback);
             let mut new_ub = cost_grad(self.cost.as_ref(), step, &self.sim.u)?;

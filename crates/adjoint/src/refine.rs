@@ -26,6 +26,7 @@
 //! are copied to the effect rebuilt on the other grid.
 
 use crate::fit::{scene_model, solver_settings};
+use crate::Error;
 use cutfem::fem::grid::{available_memory, BYTES_PER_NODE, INACTIVE};
 use cutfem::fem::{Grid, Model, Simulation};
 use cutfem::scene::Scene;
@@ -148,30 +149,30 @@ pub fn refine_check(
     model: &Model,
     params: &RefineParams,
     progress: &mut dyn FnMut(&str, usize, usize),
-) -> Result<RefineCheck, String> {
-    let r = scene.resolution().map_err(|e| e.to_string())?;
+) -> Result<RefineCheck, Error> {
+    let r = scene.resolution()?;
     let steps = params.steps.unwrap_or(scene.time.steps);
     let frames: Vec<usize> = match &params.frames {
         Some(f) => f.iter().copied().filter(|&f| f >= 1 && f <= steps).collect(),
         None => (1..=steps).collect(),
     };
     if frames.is_empty() {
-        return Err("refine check: no frame to compare".into());
+        return Err(Error::invalid("refine check: no frame to compare"));
     }
     let (points, weights) = surface_points(grid);
     if points.is_empty() {
-        return Err("refine check: the body has no surface".into());
+        return Err(Error::invalid("refine check: the body has no surface"));
     }
     // memory: the 2r grid has about 8x the nodes
     let need = 8 * grid.dofs() * BYTES_PER_NODE * 2;
     if let Some(avail) = available_memory() {
         if need > avail {
-            return Err(format!(
+            return Err(Error::Invalid(format!(
                 "refine check: the grid at resolution {} needs about {} MB, {} MB are available",
                 2.0 * r,
                 need >> 20,
                 avail >> 20
-            ));
+            )));
         }
     }
     let base = run(
@@ -248,13 +249,8 @@ fn surface_points(grid: &Grid) -> (Vec<[f64; 3]>, Vec<f64>) {
 }
 
 /// The simulation grid of `scene` at `resolution` and `model` carried over to it.
-fn at_resolution(
-    scene: &Scene,
-    grid: &Grid,
-    model: &Model,
-    resolution: f64,
-) -> Result<(Grid, Model), String> {
-    let other = scene.grid_at(Some(resolution)).map_err(|e| e.to_string())?;
+fn at_resolution(scene: &Scene, grid: &Grid, model: &Model, resolution: f64) -> Result<(Grid, Model), Error> {
+    let other = scene.grid_at(Some(resolution))?;
     let mut m = scene_model(scene, &other)?;
     carry_model(model, grid, &mut m, &other);
     Ok((other, m))
@@ -308,12 +304,13 @@ fn run(
     points: &[[f64; 3]],
     level: &str,
     progress: &mut dyn FnMut(&str, usize, usize),
-) -> Result<Track, String> {
-    let mut sim = Simulation::new(grid, model).map_err(|e| format!("{level}: {e}"))?;
+) -> Result<Track, Error> {
+    let mut sim = Simulation::new(grid, model).map_err(|e| Error::step(level, e))?;
     sim.solver = solver_settings(scene, sim.solver);
     let mut out = Vec::with_capacity(frames.len());
     for f in 1..=steps {
-        sim.step().map_err(|e| format!("{level}, step {f}: {e}"))?;
+        sim.step()
+            .map_err(|e| Error::step(format!("{level}, step {f}"), e))?;
         progress(level, f, steps);
         if frames.contains(&f) {
             out.push(

@@ -45,6 +45,7 @@
 //! standard errors in the ratio above).
 
 use crate::problem::{Evaluation, Problem};
+use crate::Error;
 
 /// Inverts a small symmetric positive definite matrix (`n x n`, row-major) by Gauss-Jordan
 /// elimination with partial pivoting; `None` when it is singular.
@@ -107,7 +108,7 @@ pub struct Uncertainty {
 /// to the reported quantities by [`crate::params::ParamSet::x_scales`]. `None` when `H` is
 /// singular (a parameter the data do not determine) or there are no more points than
 /// parameters.
-pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<Option<Uncertainty>, String> {
+pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<Option<Uncertainty>, Error> {
     let p = x.len();
     let n: usize = ev.frames.iter().map(|f| f.informative).sum();
     if n <= p {
@@ -115,7 +116,7 @@ pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<
     }
     let rwr: f64 = ev.frames.iter().map(|f| f.weighted_squared).sum();
     let s2 = rwr / (n - p) as f64;
-    let h = problem.gauss_newton_matrix(x).map_err(|e| e.to_string())?;
+    let h = problem.gauss_newton_matrix(x)?;
     let Some(inv) = invert_small(&h, p) else {
         return Ok(None);
     };

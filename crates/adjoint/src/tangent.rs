@@ -16,7 +16,8 @@
 //! linearization ([`crate::cost::Cost::frame_gauss_newton`]); the gradient stays the exact
 //! adjoint one.
 
-use crate::problem::{Evaluation, Problem, ProblemError};
+use crate::problem::{Evaluation, Problem};
+use crate::Error;
 use cutfem::fem::Model;
 use gpumat::{Matrix, Vec3};
 
@@ -25,7 +26,7 @@ const EPS: f64 = 1e-6;
 
 impl Problem {
     /// The cost, its adjoint gradient and the Gauss-Newton matrix (`n x n`, row-major) at `x`.
-    pub fn gauss_newton(&mut self, x: &[f64]) -> Result<(Evaluation, Vec<f64>, Vec<f64>), ProblemError> {
+    pub fn gauss_newton(&mut self, x: &[f64]) -> Result<(Evaluation, Vec<f64>, Vec<f64>), Error> {
         let (ev, g, _) = self.gradient(x)?;
         let h = self.gauss_newton_matrix(x)?;
         Ok((ev, g, h))
@@ -33,7 +34,7 @@ impl Problem {
 
     /// The sensitivities `du(t)/dx_k` for every step (index `t`), or only the observed frames'
     /// Gauss-Newton contributions: returns `H`.
-    pub fn gauss_newton_matrix(&mut self, x: &[f64]) -> Result<Vec<f64>, ProblemError> {
+    pub fn gauss_newton_matrix(&mut self, x: &[f64]) -> Result<Vec<f64>, Error> {
         let n = x.len();
         let dirs: Vec<Vec<f64>> = (0..n)
             .map(|k| {
@@ -47,11 +48,7 @@ impl Problem {
 
     /// The Gauss-Newton matrix in the directions `dirs` (`D^T H D`, `m x m` row-major for `m`
     /// directions): one tangent-linear pass per direction instead of one per coordinate.
-    pub fn gauss_newton_directions(
-        &mut self,
-        x: &[f64],
-        dirs: &[Vec<f64>],
-    ) -> Result<Vec<f64>, ProblemError> {
+    pub fn gauss_newton_directions(&mut self, x: &[f64], dirs: &[Vec<f64>]) -> Result<Vec<f64>, Error> {
         let n = dirs.len();
         let model = self.model_at(x);
         let dofs = self.sim.grid.dofs();
@@ -68,7 +65,7 @@ impl Problem {
         // initial sensitivities: u(0) = 0; v(0) depends on the initial-velocity parameters
         let mut su: Vec<Matrix<Vec3<f64>>> = vec![Matrix::zeros(dofs, 1, 1); n];
         let mut sv: Vec<Matrix<Vec3<f64>>> = Vec::with_capacity(n);
-        let invalid = |e: cutfem::Error| ProblemError::Invalid(e.to_string());
+        let invalid = |e: cutfem::Error| Error::Invalid(e.to_string());
         for (mp, mm) in &models {
             self.sim.reset(mp.clone()).map_err(invalid)?;
             let vp = self.sim.v.clone();
@@ -82,7 +79,7 @@ impl Problem {
             let c = self
                 .cost
                 .frame_gauss_newton(0, &self.sim.u, &su)
-                .map_err(ProblemError::Diverged)?;
+                .map_err(|e| Error::Diverged(e.to_string()))?;
             add(&mut h, c);
         }
         let nm = model.newmark();
@@ -91,7 +88,7 @@ impl Problem {
             let (u0, v0) = (self.sim.u.clone(), self.sim.v.clone());
             self.sim
                 .substep()
-                .map_err(|e| ProblemError::Diverged(format!("step {t}: {e}")))?;
+                .map_err(|e| Error::Diverged(format!("step {t}: {e}")))?;
             let (u1, v1) = (self.sim.u.clone(), self.sim.v.clone());
             let mut drs = Vec::with_capacity(n);
             for k in 0..n {
@@ -116,7 +113,7 @@ impl Problem {
                 let mut x = Matrix::eval(su[k].ex() + sv[k].ex() * dt);
                 self.sim
                     .solve_newmark(&drs[k], &mut x)
-                    .map_err(|e| ProblemError::Diverged(format!("tangent step {t}: {e}")))?;
+                    .map_err(|e| Error::Diverged(format!("tangent step {t}: {e}")))?;
                 nm.update_velocity(&mut sv[k], &x, &su[k]);
                 su[k] = x;
             }
@@ -126,7 +123,7 @@ impl Problem {
                 let c = self
                     .cost
                     .frame_gauss_newton(f, &self.sim.u, &su)
-                    .map_err(ProblemError::Diverged)?;
+                    .map_err(|e| Error::Diverged(e.to_string()))?;
                 add(&mut h, c);
             }
         }

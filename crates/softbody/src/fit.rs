@@ -212,7 +212,7 @@ pub fn run(args: Args) -> Result<(), String> {
     });
     bar.finish_and_clear();
     if let Some(e) = log_error {
-        return Err(e);
+        return Err(e.into());
     }
     let (x_best, info) = match result {
         Ok(r) => r,

@@ -160,7 +160,7 @@ pub fn run(a: Args) -> Result<(), String> {
     }
     // the messages start with the field's name; name the flag instead
     rig.validate()
-        .map_err(|e| format!("--{}", e.replacen("fov_y", "fov", 1)))?;
+        .map_err(|e| format!("--{}", e.to_string().replacen("fov_y", "fov", 1)))?;
     let scene = Scene::load(&a.scene).map_err(|e| e.to_string())?;
     let steps = crate::problem_args::steps(a.steps, &scene)?;
     let mut frames = match &a.frames {

@@ -36,7 +36,7 @@ pub fn run(
         }
         Err(e) => {
             crate::note!("refine check skipped: {e}");
-            json!({ "error": e })
+            json!({ "error": e.to_string() })
         }
     }
 }

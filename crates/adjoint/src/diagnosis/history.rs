@@ -3,6 +3,7 @@
 //! `rms`, and for a diagnosis `noise_floor` and `missing_effect`), so that the report can plot
 //! the rms over the user's successive models.
 
+use crate::Error;
 use serde_json::{json, Value};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -87,22 +88,22 @@ impl Entry {
 }
 
 /// Appends `entry` to `path` (created when missing).
-pub fn append(path: &Path, entry: &Entry) -> Result<(), String> {
+pub fn append(path: &Path, entry: &Entry) -> Result<(), Error> {
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    writeln!(f, "{}", entry.to_json()).map_err(|e| format!("{}: {e}", path.display()))
+        .map_err(|e| Error::io(path, e))?;
+    writeln!(f, "{}", entry.to_json()).map_err(|e| Error::io(path, e))
 }
 
 /// Reads a history file (missing file: empty). A line that is not a history entry is an error
 /// naming the file and line.
-pub fn read(path: &Path) -> Result<Vec<Entry>, String> {
+pub fn read(path: &Path) -> Result<Vec<Entry>, Error> {
     let text = match cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(format!("{}: {e}", path.display())),
+        Err(e) => return Err(Error::io(path, e)),
     };
     text.lines()
         .enumerate()
@@ -111,7 +112,7 @@ pub fn read(path: &Path) -> Result<Vec<Entry>, String> {
             serde_json::from_str::<Value>(l)
                 .ok()
                 .and_then(|v| Entry::from_json(&v))
-                .ok_or_else(|| format!("{}:{}: not a history entry", path.display(), i + 1))
+                .ok_or_else(|| Error::format(path, format!("{}: not a history entry", i + 1)))
         })
         .collect()
 }
@@ -176,6 +177,6 @@ mod tests {
         assert_eq!(r.len(), 2);
         assert_eq!(r[1], e);
         std::fs::write(&p, "{\"x\": 1}\n").unwrap();
-        assert!(read(&p).unwrap_err().contains("a.history.jsonl:1"));
+        assert!(read(&p).unwrap_err().to_string().contains("a.history.jsonl:1"));
     }
 }

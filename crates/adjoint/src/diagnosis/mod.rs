@@ -30,6 +30,7 @@ use crate::cost_mesh::SurfaceCost;
 use crate::fit::observed_frames;
 use crate::observations::Observations;
 use crate::params::ParamSet;
+use crate::Error;
 use cutfem::fem::Model;
 use cutfem::scene::Scene;
 use effects::{catalogue, write_back_all, DataContext, Effect};
@@ -160,17 +161,17 @@ pub struct Refined {
 /// after the verdict: the scene's own starting values for the base parameters (the wrong
 /// model's fit may have wandered off), the effect's values from the short refit, then
 /// `iterations` iterations.
-pub fn add_and_refit(setup: &Setup, d: &Diagnosis, name: &str, iterations: usize) -> Result<Refined, String> {
+pub fn add_and_refit(setup: &Setup, d: &Diagnosis, name: &str, iterations: usize) -> Result<Refined, Error> {
     let c = d
         .candidates
         .iter()
         .find(|c| c.effect == name)
-        .ok_or_else(|| format!("`{name}` is not a candidate of this diagnosis"))?;
+        .ok_or_else(|| Error::Invalid(format!("`{name}` is not a candidate of this diagnosis")))?;
     let scene = c
         .scene
         .clone()
-        .ok_or_else(|| format!("`{name}` could not be probed"))?;
-    let e = effects::effect(name).ok_or_else(|| format!("unknown effect `{name}`"))?;
+        .ok_or_else(|| Error::Invalid(format!("`{name}` could not be probed")))?;
+    let e = effects::effect(name).ok_or_else(|| Error::Invalid(format!("unknown effect `{name}`")))?;
     let (mut problem, x0) =
         score::extended_problem_at(setup, &d.base_params, &d.base_x, &scene, &e.params())?;
     let nb = d.base_x_start.len();
@@ -203,7 +204,7 @@ pub fn diagnose(
     params: ParamSet,
     settings: &DiagnoseParams,
     progress: Progress,
-) -> Result<Diagnosis, String> {
+) -> Result<Diagnosis, Error> {
     let on: Vec<Box<dyn Effect>> = catalogue()
         .into_iter()
         .filter(|e| scene.effect_on(e.name()))
@@ -221,7 +222,7 @@ pub fn diagnose(
         ..*setup
     };
     let x0 = problem.x0();
-    let rms_start = problem.evaluate(&x0).map_err(|e| e.to_string())?.rms();
+    let rms_start = problem.evaluate(&x0)?.rms();
     let (x, eval) = score::fit_problem(&mut problem, &x0, settings.fit_iterations)?;
     let model = problem.model_at(&x);
     let mut fitted_scene = scene.clone();

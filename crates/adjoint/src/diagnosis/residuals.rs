@@ -27,6 +27,7 @@
 use crate::cost_mesh::SurfaceCost;
 use crate::observations::Observations;
 use crate::observe::Camera;
+use crate::Error;
 use cutfem::fem::{Model, Simulation};
 use gpumat::{Matrix, Vec3};
 use std::collections::HashMap;
@@ -57,15 +58,15 @@ pub fn point_residuals(
     steps: usize,
     cost: &SurfaceCost,
     observations: &Observations,
-) -> Result<Vec<PointResidual>, String> {
-    sim.reset(model).map_err(|e| e.to_string())?;
+) -> Result<Vec<PointResidual>, Error> {
+    sim.reset(model)?;
     let zero: Matrix<Vec3<f64>> = Matrix::zeros(sim.grid.dofs(), 1, 1);
     let reference = cost.vertices(&zero);
     let faces = &cost.surface().mesh.faces;
     let mut out = Vec::new();
     for t in 0..=steps {
         if t > 0 {
-            sim.step().map_err(|e| format!("step {t}: {e}"))?;
+            sim.step().map_err(|e| Error::step(format!("step {t}"), e))?;
         }
         let obs = observations.frame(t);
         if obs.is_empty() {
@@ -493,11 +494,11 @@ pub fn surfaces_at(
     sim: &mut Simulation,
     model: Model,
     frame: usize,
-) -> Result<(cutfem::TriMesh, cutfem::TriMesh), String> {
-    let surface = sim.grid.surface().map_err(|e| e.to_string())?;
-    sim.reset(model).map_err(|e| e.to_string())?;
+) -> Result<(cutfem::TriMesh, cutfem::TriMesh), Error> {
+    let surface = sim.grid.surface()?;
+    sim.reset(model)?;
     for t in 1..=frame {
-        sim.step().map_err(|e| format!("step {t}: {e}"))?;
+        sim.step().map_err(|e| Error::step(format!("step {t}"), e))?;
     }
     let deformed = sim.grid.deformed(&surface, &sim.u);
     Ok((surface.mesh, deformed))

@@ -32,6 +32,7 @@ use crate::fit::{invert_small, scene_problem_reach, CostKind, FitObjective};
 use crate::optim::{minimize, EvalError, GaussNewtonObjective, GnEval, Objective, OptimParams, Optimizer};
 use crate::params::ParamSet;
 use crate::problem::{Evaluation, Problem};
+use crate::Error;
 use cutfem::fem::Model;
 use cutfem::scene::Scene;
 use std::ops::ControlFlow;
@@ -95,7 +96,7 @@ pub fn extended_problem(
     base: &BaseFit,
     scene: &Scene,
     extra: &[crate::params::Param],
-) -> Result<(Problem, Vec<f64>), String> {
+) -> Result<(Problem, Vec<f64>), Error> {
     extended_problem_at(setup, &base.params, &base.x, scene, extra)
 }
 
@@ -106,7 +107,7 @@ pub fn extended_problem_at(
     base_x: &[f64],
     scene: &Scene,
     extra: &[crate::params::Param],
-) -> Result<(Problem, Vec<f64>), String> {
+) -> Result<(Problem, Vec<f64>), Error> {
     let base = BaseRef {
         params: base_params,
         x: base_x,
@@ -144,7 +145,7 @@ struct BaseRef<'a> {
 }
 
 /// The surface-cost problem of `scene` with the diagnosis' reach ([`Setup::reach`]).
-pub fn diagnosis_problem(scene: &Scene, setup: &Setup, params: ParamSet) -> Result<Problem, String> {
+pub fn diagnosis_problem(scene: &Scene, setup: &Setup, params: ParamSet) -> Result<Problem, Error> {
     let mut problem = scene_problem_reach(
         scene,
         setup.observations,
@@ -187,16 +188,16 @@ pub fn probe(setup: &Setup, base: &BaseFit, effect: &dyn Effect, data: &DataCont
         x: Vec::new(),
         scene: None,
     };
-    let run = |c: &mut Candidate| -> Result<(), String> {
+    let run = |c: &mut Candidate| -> Result<(), Error> {
         let mut scene = base.scene.clone();
         effect.switch_on(&mut scene, data)?;
         let (mut problem, x0) = extended_problem(setup, base, &scene, &effect.params())?;
         c.params = problem.params.labels()[base.x.len()..].to_vec();
         let (c0, n) = totals(&base.eval);
         let predicted = match effect.probe() {
-            Probe::Switch => problem.evaluate(&x0).map_err(|e| e.to_string())?.cost,
+            Probe::Switch => problem.evaluate(&x0)?.cost,
             Probe::Score | Probe::Initialized => {
-                let (ev, g, _) = problem.gradient(&x0).map_err(|e| e.to_string())?;
+                let (ev, g, _) = problem.gradient(&x0)?;
                 // the base coordinates, and the effect's own ones when few, else only the
                 // direction of its gradient (a lower bound of the decrease; one tangent pass
                 // instead of one per coefficient of a stiffness field)
@@ -220,9 +221,7 @@ pub fn probe(setup: &Setup, base: &BaseFit, effect: &dyn Effect, data: &DataCont
                         dirs.push(d);
                     }
                 }
-                let h = problem
-                    .gauss_newton_directions(&x0, &dirs)
-                    .map_err(|e| e.to_string())?;
+                let h = problem.gauss_newton_directions(&x0, &dirs)?;
                 let gd: Vec<f64> = dirs
                     .iter()
                     .map(|d| d.iter().zip(&g).map(|(a, b)| a * b).sum())
@@ -246,7 +245,7 @@ pub fn probe(setup: &Setup, base: &BaseFit, effect: &dyn Effect, data: &DataCont
         Ok(())
     };
     if let Err(e) = run(&mut c) {
-        c.error = Some(e);
+        c.error = Some(e.to_string());
         c.score = f64::NEG_INFINITY;
     }
     c
@@ -256,7 +255,7 @@ pub fn probe(setup: &Setup, base: &BaseFit, effect: &dyn Effect, data: &DataCont
 /// `Delta BIC`.
 pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candidate, iterations: usize) {
     let Some(scene) = c.scene.clone() else { return };
-    let run = || -> Result<(Vec<f64>, Evaluation, Problem), String> {
+    let run = || -> Result<(Vec<f64>, Evaluation, Problem), Error> {
         let (mut problem, x0) = extended_problem(setup, base, &scene, &effect.params())?;
         // the best of three starts (one forward run each): the base fit with the effect at
         // its probe value; the probe's Gauss-Newton step from there (a log coordinate takes
@@ -330,7 +329,7 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
             c.suggestion = effect.suggestion(&model);
             c.model = Some(model);
         }
-        Err(e) => c.error = Some(e),
+        Err(e) => c.error = Some(e.to_string()),
     }
 }
 
@@ -387,9 +386,9 @@ pub fn fit_problem(
     problem: &mut Problem,
     x0: &[f64],
     iterations: usize,
-) -> Result<(Vec<f64>, Evaluation), String> {
+) -> Result<(Vec<f64>, Evaluation), Error> {
     if iterations == 0 {
-        let ev = problem.evaluate(x0).map_err(|e| e.to_string())?;
+        let ev = problem.evaluate(x0)?;
         return Ok((x0.to_vec(), ev));
     }
     let params = OptimParams {
@@ -417,12 +416,11 @@ pub fn fit_problem(
     };
     let (x, _) = minimize(optimizer, &mut obj, x0, &params, &mut |_| {
         ControlFlow::Continue(())
-    })
-    .map_err(|e| e.to_string())?;
+    })?;
     let x = obj.project(&x);
     let ev = match obj.inner.evaluation_at(&x) {
         Some(ev) => ev,
-        None => obj.inner.problem.evaluate(&x).map_err(|e| e.to_string())?,
+        None => obj.inner.problem.evaluate(&x)?,
     };
     Ok((x, ev))
 }
@@ -432,7 +430,7 @@ pub const FIELD_PRIOR: f64 = 1e-3;
 
 /// `(coordinate, alpha)` of the stiffness field's prior at the start `x0` of a fit
 /// ([`fit_problem`]); empty without a field.
-fn field_prior(problem: &mut Problem, x0: &[f64]) -> Result<Vec<(usize, f64)>, String> {
+fn field_prior(problem: &mut Problem, x0: &[f64]) -> Result<Vec<(usize, f64)>, Error> {
     let coords: Vec<usize> = problem
         .params
         .field_coordinates()
@@ -451,9 +449,7 @@ fn field_prior(problem: &mut Problem, x0: &[f64]) -> Result<Vec<(usize, f64)>, S
             d
         })
         .collect();
-    let h = problem
-        .gauss_newton_directions(x0, &dirs)
-        .map_err(|e| e.to_string())?;
+    let h = problem.gauss_newton_directions(x0, &dirs)?;
     let m = coords.len();
     let alpha = FIELD_PRIOR * (0..m).map(|i| h[i * m + i]).fold(0.0f64, f64::max);
     Ok(coords.into_iter().map(|k| (k, alpha)).collect())

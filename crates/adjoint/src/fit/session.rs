@@ -8,6 +8,7 @@
 //! optimizer's iteration 0 (a repeat of the last entry) is not logged again.
 
 use crate::optim::IterationRecord;
+use crate::Error;
 use serde_json::{json, Map, Value};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -23,13 +24,13 @@ pub fn values_json(values: &[(String, f64)]) -> Value {
 }
 
 /// Reads a fit log: its entries, blank lines skipped; errors name the file and line.
-pub fn read_log(path: &Path) -> Result<Vec<Value>, String> {
-    let text = cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn read_log(path: &Path) -> Result<Vec<Value>, Error> {
+    let text =
+        cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES).map_err(|e| Error::io(path, e))?;
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| serde_json::from_str(l).map_err(|e| format!("{}:{}: {e}", path.display(), i + 1)))
+        .map(|(i, l)| serde_json::from_str(l).map_err(|e| Error::format(path, format!("{}: {e}", i + 1))))
         .collect()
 }
 
@@ -52,11 +53,11 @@ impl FitLog {
         earlier: Option<&Path>,
         labels: &[String],
         x0: &mut Vec<f64>,
-    ) -> Result<FitLog, String> {
+    ) -> Result<FitLog, Error> {
         let mut history = Vec::new();
         if let Some(earlier) = earlier {
             history = read_log(earlier)?;
-            std::fs::copy(earlier, path).map_err(|e| format!("{}: {e}", path.display()))?;
+            std::fs::copy(earlier, path).map_err(|e| Error::io(path, e))?;
         }
         if let Some(last) = history.last() {
             let xs: Option<Vec<f64>> = last["x"]
@@ -65,11 +66,11 @@ impl FitLog {
             match xs {
                 Some(xs) if xs.len() == x0.len() => *x0 = xs,
                 _ => {
-                    return Err(format!(
+                    return Err(Error::Invalid(format!(
                         "{}: the last entry does not match the fitted parameters {}",
                         path.display(),
                         labels.join(",")
-                    ))
+                    )))
                 }
             }
         }
@@ -81,7 +82,7 @@ impl FitLog {
             .create(true)
             .append(true)
             .open(path)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+            .map_err(|e| Error::io(path, e))?;
         Ok(FitLog {
             path: path.to_path_buf(),
             file,
@@ -98,7 +99,7 @@ impl FitLog {
         rec: &IterationRecord,
         rms: Option<f64>,
         values: &[(String, f64)],
-    ) -> Result<(), String> {
+    ) -> Result<(), Error> {
         if self.resumed && rec.iteration == 0 {
             return Ok(());
         }
@@ -113,7 +114,7 @@ impl FitLog {
         });
         writeln!(self.file, "{entry}")
             .and_then(|_| self.file.flush())
-            .map_err(|e| format!("{}: {e}", self.path.display()))?;
+            .map_err(|e| Error::io(&self.path, e))?;
         self.history.push(entry);
         Ok(())
     }
@@ -171,11 +172,13 @@ mod tests {
         assert_eq!(entries[1]["parameters"]["young"], json!(10.0));
         // a log of other parameters is refused, naming them
         let mut x3 = vec![0.0; 3];
-        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &labels, &mut x3).unwrap_err();
+        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &labels, &mut x3)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("young,poisson"), "{err}");
         // a broken line names the file and line
         std::fs::write(&first, "{\"x\": [1, 2]}\nnot json\n").unwrap();
-        let err = read_log(&first).unwrap_err();
+        let err = read_log(&first).unwrap_err().to_string();
         assert!(err.contains("a.log:2"), "{err}");
         std::fs::remove_dir_all(&dir).ok();
     }

@@ -55,6 +55,7 @@ pub use raster::{render_depth, DepthImage};
 pub use rng::SplitMix64;
 
 use crate::observations::{Observations, ObservedPoint};
+use crate::Error;
 pub(crate) use cutfem::v3::{add, cross, dot, normalize, scale, sub};
 use cutfem::TriMesh;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_6, TAU};
@@ -96,30 +97,30 @@ impl Default for RigParams {
 
 impl RigParams {
     /// Checks the settings; the message names the offending field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Error> {
         if self.cameras == 0 {
-            return Err("cameras must be at least 1".into());
+            return Err(Error::invalid("cameras must be at least 1"));
         }
         if self.pixels == 0 {
-            return Err("pixels must be at least 1".into());
+            return Err(Error::invalid("pixels must be at least 1"));
         }
         if !(self.radius.is_finite() && self.radius > 0.0) {
-            return Err(format!(
+            return Err(Error::Invalid(format!(
                 "radius must be positive and finite, found {}",
                 self.radius
-            ));
+            )));
         }
         if !(self.fov_y.is_finite() && self.fov_y > 0.0 && self.fov_y < std::f64::consts::PI) {
-            return Err(format!(
+            return Err(Error::Invalid(format!(
                 "fov_y must be in (0, 180) degrees, found {}",
                 self.fov_y.to_degrees()
-            ));
+            )));
         }
         let [a, b] = self.theta;
         if !(a.is_finite() && b.is_finite() && 0.0 <= a && a <= b && b <= std::f64::consts::PI) {
-            return Err(format!(
+            return Err(Error::Invalid(format!(
                 "theta must satisfy 0 <= min <= max <= pi, found [{a}, {b}]"
-            ));
+            )));
         }
         Ok(())
     }
@@ -256,16 +257,16 @@ pub fn observe_run(
     sigma: f64,
     frames: &[usize],
     mut on_step: impl FnMut(usize),
-) -> Result<ObservationRun, String> {
+) -> Result<ObservationRun, Error> {
     rig.validate()?;
     if !(sigma.is_finite() && sigma >= 0.0) {
-        return Err(format!("noise must be non-negative, got {sigma}"));
+        return Err(Error::Invalid(format!("noise must be non-negative, got {sigma}")));
     }
-    let surface = sim.grid.surface().map_err(|e| e.to_string())?;
+    let surface = sim.grid.surface()?;
     let (lo, hi) = surface
         .mesh
         .bounding_box()
-        .ok_or("the body has no surface to observe")?;
+        .ok_or_else(|| Error::invalid("the body has no surface to observe"))?;
     let target = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
     let cameras = place_cameras(target, rig);
     let mut run = ObservationRun {
@@ -280,8 +281,9 @@ pub fn observe_run(
     for f in 0..=last {
         if f > 0 {
             let t = Instant::now();
-            sim.step().map_err(|e| format!("step {f}: {e}"))?;
-            sim.check_finite().map_err(|e| format!("step {f}: {e}"))?;
+            sim.step().map_err(|e| Error::step(format!("step {f}"), e))?;
+            sim.check_finite()
+                .map_err(|e| Error::step(format!("step {f}"), e))?;
             run.simulation_s += t.elapsed().as_secs_f64();
             on_step(f);
         }
@@ -309,11 +311,11 @@ pub fn synthesize(
     sigma: f64,
     steps: usize,
     edit: impl FnOnce(&cutfem::fem::Grid, &mut cutfem::fem::Model),
-) -> Result<(Observations, Vec<Camera>), String> {
+) -> Result<(Observations, Vec<Camera>), Error> {
     let mut sim = crate::fit::scene_simulation(scene)?;
     let mut model = sim.model.clone();
     edit(&sim.grid, &mut model);
-    sim.reset(model).map_err(|e| e.to_string())?;
+    sim.reset(model)?;
     let frames: Vec<usize> = (1..=steps).collect();
     let run = observe_run(&mut sim, rig, sigma, &frames, |_| {})?;
     Ok((run.observations, run.cameras))

@@ -1,6 +1,7 @@
 //! The coarse trilinear basis of the `stiffness_field` parameter (module docs of
 //! [`crate::params`]).
 
+use crate::Error;
 use gpumat::Vec3;
 
 /// The coarse trilinear basis of the `stiffness_field` parameter: `nodes` = `(cells+1)^3`
@@ -20,11 +21,11 @@ pub struct FieldBasis {
 
 impl FieldBasis {
     /// The basis with `cells` coarse cells per axis over `grid`'s active cells.
-    pub fn new(grid: &cutfem::fem::Grid, cells: [usize; 3]) -> Result<Self, String> {
+    pub fn new(grid: &cutfem::fem::Grid, cells: [usize; 3]) -> Result<Self, Error> {
         if cells.iter().any(|&c| c == 0 || c > 64) {
-            return Err(format!(
+            return Err(Error::Invalid(format!(
                 "model.stiffness_field.cells: each must lie in 1..=64, got {cells:?}"
-            ));
+            )));
         }
         let h = grid.h();
         let centers: Vec<[f64; 3]> = grid
@@ -33,7 +34,9 @@ impl FieldBasis {
             .map(|c| (grid.cell_origin(c) + Vec3::splat(0.5 * h)).to_array())
             .collect();
         if centers.is_empty() {
-            return Err("model.stiffness_field: the body has no active cells".into());
+            return Err(Error::invalid(
+                "model.stiffness_field: the body has no active cells",
+            ));
         }
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];

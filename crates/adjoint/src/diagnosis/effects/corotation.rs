@@ -5,6 +5,7 @@
 
 use super::{add_effect, DataContext, Effect, Probe};
 use crate::params::Param;
+use crate::Error;
 use cutfem::fem::Model;
 use cutfem::scene::Scene;
 
@@ -25,7 +26,7 @@ impl Effect for Corotation {
     fn probe(&self) -> Probe {
         Probe::Switch
     }
-    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), String> {
+    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), Error> {
         add_effect(scene, self.name());
         Ok(())
     }

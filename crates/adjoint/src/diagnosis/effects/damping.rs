@@ -4,6 +4,7 @@
 
 use super::{add_effect, short, DataContext, Effect, Probe};
 use crate::params::Param;
+use crate::Error;
 use cutfem::fem::Model;
 use cutfem::scene::{DampingSection, Scene};
 
@@ -24,7 +25,7 @@ impl Effect for Damping {
     fn probe(&self) -> Probe {
         Probe::Score
     }
-    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), String> {
+    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), Error> {
         scene.damping = Some(DampingSection {
             mass: 0.0,
             stiffness: 0.0,

@@ -3,6 +3,7 @@
 
 use super::{add_effect, toml_vec, DataContext, Effect, Probe};
 use crate::params::Param;
+use crate::Error;
 use cutfem::fem::Model;
 use cutfem::scene::{GravitySection, Scene};
 
@@ -23,7 +24,7 @@ impl Effect for Gravity {
     fn probe(&self) -> Probe {
         Probe::Score
     }
-    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), String> {
+    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), Error> {
         scene.gravity = Some(GravitySection {
             acceleration: [0.0; 3],
         });

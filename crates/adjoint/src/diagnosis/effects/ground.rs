@@ -8,6 +8,7 @@
 
 use super::{add_effect, short, toml_vec, DataContext, Effect, Probe};
 use crate::params::Param;
+use crate::Error;
 use cutfem::fem::Model;
 use cutfem::scene::{GroundSection, Scene, DEFAULT_GROUND_SOFTNESS, DEFAULT_GROUND_STIFFNESS};
 
@@ -31,7 +32,7 @@ impl Effect for GroundContact {
     fn probe(&self) -> Probe {
         Probe::Initialized
     }
-    fn switch_on(&self, scene: &mut Scene, data: &DataContext) -> Result<(), String> {
+    fn switch_on(&self, scene: &mut Scene, data: &DataContext) -> Result<(), Error> {
         let g = if scene.effect_on("gravity") {
             scene.gravity.as_ref().map(|g| g.acceleration)
         } else {
@@ -51,7 +52,7 @@ impl Effect for GroundContact {
             .map(|p| (0..3).map(|d| p.position[d] * normal[d]).sum::<f64>())
             .collect();
         if heights.is_empty() {
-            return Err("ground: no observed points to place the plane".into());
+            return Err(Error::invalid("ground: no observed points to place the plane"));
         }
         heights.sort_by(f64::total_cmp);
         let k = ((heights.len() as f64 * LOW_QUANTILE) as usize).min(heights.len() - 1);

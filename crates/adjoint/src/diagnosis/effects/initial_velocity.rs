@@ -4,6 +4,7 @@
 
 use super::{add_effect, toml_vec, DataContext, Effect, Probe};
 use crate::params::Param;
+use crate::Error;
 use cutfem::fem::Model;
 use cutfem::scene::{InitialSection, Scene};
 
@@ -24,7 +25,7 @@ impl Effect for InitialVelocity {
     fn probe(&self) -> Probe {
         Probe::Score
     }
-    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), String> {
+    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), Error> {
         scene.initial = Some(InitialSection::default());
         add_effect(scene, self.name());
         Ok(())

@@ -54,6 +54,7 @@ pub use wind::Wind;
 
 use crate::observations::Observations;
 use crate::params::Param;
+use crate::Error;
 use cutfem::fem::{Grid, Model};
 use cutfem::scene::{ModelSection, Scene};
 
@@ -93,7 +94,7 @@ pub trait Effect: Send + Sync {
     /// Switches the effect on in `scene` at its neutral value ([`Probe::Score`]), at a value
     /// estimated from `data` ([`Probe::Initialized`]), or simply on ([`Probe::Switch`]); writes
     /// the scene section it needs and adds it to `[model].effects`.
-    fn switch_on(&self, scene: &mut Scene, data: &DataContext) -> Result<(), String>;
+    fn switch_on(&self, scene: &mut Scene, data: &DataContext) -> Result<(), Error>;
     /// Writes the effect's values of `model` (e.g. after a fit) into `scene`'s section.
     fn write_back(&self, scene: &mut Scene, model: &Model);
     /// The TOML the user adds to the scene to switch it on with the values of `model`.
@@ -103,7 +104,7 @@ pub trait Effect: Send + Sync {
     /// [`crate::fit::scene_model`] for every effect of [`extended_catalogue`] the scene
     /// switches on. The default does nothing: the built-in effects are built by
     /// [`Scene::to_model`].
-    fn apply_to_model(&self, _scene: &Scene, _grid: &Grid, _model: &mut Model) -> Result<(), String> {
+    fn apply_to_model(&self, _scene: &Scene, _grid: &Grid, _model: &mut Model) -> Result<(), Error> {
         Ok(())
     }
 }
@@ -147,15 +148,15 @@ pub fn explicit_effects(scene: &mut Scene) {
 /// Checks the scene's extension effects (module docs): every effect name in `[model].effects`
 /// and every extension section must belong to an effect of the [`extended_catalogue`]. The
 /// error names the file and, for a section, its line.
-pub fn check_extensions(scene: &Scene) -> Result<(), String> {
+pub fn check_extensions(scene: &Scene) -> Result<(), Error> {
     let known: Vec<&'static str> = extended_catalogue().iter().map(|e| e.name()).collect();
     let file = scene.path.display();
     if let Some(m) = &scene.model {
         if let Some(e) = m.effects.iter().find(|e| !known.contains(&e.as_str())) {
-            return Err(format!(
+            return Err(Error::Invalid(format!(
                 "{file}: model.effects: unknown effect `{e}` (known: {})",
                 known.join(", ")
-            ));
+            )));
         }
     }
     if let Some((name, x)) = scene
@@ -168,12 +169,12 @@ pub fn check_extensions(scene: &Scene) -> Result<(), String> {
             .copied()
             .filter(|e| !cutfem::scene::EFFECTS.contains(e))
             .collect();
-        return Err(format!(
+        return Err(Error::Invalid(format!(
             "{file}: {}unknown section [{name}] (core sections: {}; effects with their own section: {})",
             x.location(),
             cutfem::scene::SECTIONS.join(", "),
             own.join(", ")
-        ));
+        )));
     }
     Ok(())
 }

@@ -6,6 +6,7 @@
 
 use super::{add_effect, DataContext, Effect, Probe};
 use crate::params::Param;
+use crate::Error;
 use cutfem::fem::Model;
 use cutfem::scene::{ModelSection, Scene, StiffnessFieldSection};
 
@@ -35,7 +36,7 @@ impl Effect for StiffnessField {
     fn probe(&self) -> Probe {
         Probe::Score
     }
-    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), String> {
+    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), Error> {
         add_effect(scene, self.name());
         let m: &mut ModelSection = scene.model.as_mut().expect("explicit");
         if m.stiffness_field.is_none() {

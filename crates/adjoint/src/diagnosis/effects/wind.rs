@@ -32,6 +32,7 @@
 
 use super::{add_effect, toml_vec, DataContext, Effect, Probe};
 use crate::params::Param;
+use crate::Error;
 use cutfem::fem::{ExternalForce, Grid, Model};
 use cutfem::scene::Scene;
 use gpumat::Vec3;
@@ -54,14 +55,14 @@ pub struct WindSection {
 
 impl WindSection {
     /// The scene's `[wind]`, checked (`None`: the scene has none).
-    pub fn of(scene: &Scene) -> Result<Option<WindSection>, String> {
-        let w: Option<WindSection> = scene.extension("wind").map_err(|e| e.to_string())?;
+    pub fn of(scene: &Scene) -> Result<Option<WindSection>, Error> {
+        let w: Option<WindSection> = scene.extension("wind")?;
         if let Some(w) = &w {
             if !w.traction.iter().all(|t| t.is_finite()) {
-                return Err(format!(
+                return Err(Error::Invalid(format!(
                     "{}: [wind].traction: must be finite",
                     scene.path.display()
-                ));
+                )));
             }
         }
         Ok(w)
@@ -119,7 +120,7 @@ impl Effect for Wind {
     fn probe(&self) -> Probe {
         Probe::Score
     }
-    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), String> {
+    fn switch_on(&self, scene: &mut Scene, _: &DataContext) -> Result<(), Error> {
         WindSection { traction: [0.0; 3] }.set(scene);
         add_effect(scene, self.name());
         Ok(())
@@ -135,8 +136,9 @@ impl Effect for Wind {
             toml_vec(traction(model).unwrap_or_default())
         )
     }
-    fn apply_to_model(&self, scene: &Scene, grid: &Grid, model: &mut Model) -> Result<(), String> {
-        let w = WindSection::of(scene)?.ok_or("listed in [model].effects without a [wind] section")?;
+    fn apply_to_model(&self, scene: &Scene, grid: &Grid, model: &mut Model) -> Result<(), Error> {
+        let w = WindSection::of(scene)?
+            .ok_or_else(|| Error::invalid("listed in [model].effects without a [wind] section"))?;
         let force = ExternalForce {
             basis: Arc::new(basis(grid)),
             coefficients: w.traction.to_vec(),
@@ -188,7 +190,7 @@ mod tests {
             .is_none());
         let model_err = |extra: &str| {
             let s = scene(extra).unwrap();
-            crate::fit::scene_model(&s, &grid).unwrap_err()
+            crate::fit::scene_model(&s, &grid).unwrap_err().to_string()
         };
         let err = model_err("[model]\neffects = [\"wind\"]\n");
         assert!(err.contains("[wind]"), "{err}");
@@ -199,7 +201,9 @@ mod tests {
             "{err}"
         );
         // a non-finite number is refused with the scene, naming the key (every section alike)
-        let err = scene("[wind]\ntraction = [1.0, 0.0, nan]\n").unwrap_err();
+        let err = scene("[wind]\ntraction = [1.0, 0.0, nan]\n")
+            .unwrap_err()
+            .to_string();
         assert!(
             err.contains("wind.toml: line 8: wind.traction[2]: not a finite number (nan)"),
             "{err}"
@@ -212,7 +216,7 @@ mod tests {
         let grid = Grid::new(scene("").unwrap().body_sdf().unwrap()).unwrap();
         let model_err = |extra: &str| {
             let s = scene(extra).unwrap();
-            crate::fit::scene_model(&s, &grid).unwrap_err()
+            crate::fit::scene_model(&s, &grid).unwrap_err().to_string()
         };
         let err = model_err("[gravty]\nacceleration = [0.0, -9.81, 0.0]\n");
         assert!(
@@ -228,6 +232,7 @@ mod tests {
             std::path::Path::new("w.toml"),
         )
         .unwrap_err()
+        .to_string()
         .to_string();
         assert!(err.contains("line 1: unknown key `youngs`"), "{err}");
     }
