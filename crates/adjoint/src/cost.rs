@@ -140,23 +140,50 @@ pub trait Cost: Send + Sync + std::fmt::Debug {
     ) -> Result<Vec<f64>, Error>;
 }
 
-/// `J^T W J` for residual derivative columns `cols[k][i]` and weights `w[i]`.
-pub(crate) fn gauss_newton_matrix(cols: &[Vec<f64>], w: &[f64]) -> Vec<f64> {
-    let n = cols.len();
-    let mut h = vec![0.0; n * n];
-    for a in 0..n {
-        for b in 0..=a {
-            let s: f64 = cols[a]
-                .iter()
-                .zip(&cols[b])
-                .zip(w)
-                .map(|((x, y), w)| w * x * y)
-                .sum();
-            h[a * n + b] = s;
-            h[b * n + a] = s;
+/// The Gauss-Newton matrix `J^T W J` of one frame, gathered point by point: every cost pushes,
+/// for each point it uses, the weight `w_i` (point weight times the loss' IRLS weight) and the
+/// residual's derivatives `J_ik` along the directions `k`.
+pub(crate) struct GaussNewtonColumns {
+    /// `cols[k][i] = J_ik`
+    cols: Vec<Vec<f64>>,
+    w: Vec<f64>,
+}
+
+impl GaussNewtonColumns {
+    /// An empty gathering for `directions` directions and up to `points` points.
+    pub(crate) fn new(directions: usize, points: usize) -> Self {
+        GaussNewtonColumns {
+            cols: vec![Vec::with_capacity(points); directions],
+            w: Vec::with_capacity(points),
         }
     }
-    h
+
+    /// A point of weight `w` whose residual has the derivative `derivative(k)` along `k`.
+    pub(crate) fn push(&mut self, w: f64, derivative: impl Fn(usize) -> f64) {
+        self.w.push(w);
+        for (k, col) in self.cols.iter_mut().enumerate() {
+            col.push(derivative(k));
+        }
+    }
+
+    /// `J^T W J` (`n x n`, row-major).
+    pub(crate) fn matrix(&self) -> Vec<f64> {
+        let n = self.cols.len();
+        let mut h = vec![0.0; n * n];
+        for a in 0..n {
+            for b in 0..=a {
+                let s: f64 = self.cols[a]
+                    .iter()
+                    .zip(&self.cols[b])
+                    .zip(&self.w)
+                    .map(|((x, y), w)| w * x * y)
+                    .sum();
+                h[a * n + b] = s;
+                h[b * n + a] = s;
+            }
+        }
+        h
+    }
 }
 
 /// `sum_t w_t/2 ||u(t) - u_ref(t)||^2` (eq. 5.4.1) over the given reference frames.
@@ -531,20 +558,19 @@ impl Cost for PointCloudCost {
             .collect::<Result<_, _>>()?;
         let points = self.points(frame);
         let hits = self.locate(frame, &u_slots);
-        let mut cols = vec![Vec::with_capacity(points.len()); du.len()];
-        let mut w = Vec::with_capacity(points.len());
+        let mut gn = GaussNewtonColumns::new(du.len(), points.len());
         for (pt, hit) in points.iter().zip(&hits) {
             let Some(hit) = hit else { continue };
             let c = &self.cells[hit.cell];
             let Some((n, q)) = self.linearization(hit, &u_slots) else {
                 continue;
             };
-            w.push(pt.weight * self.robust.irls_weight(hit.residual));
-            for (col, ds) in cols.iter_mut().zip(&d_slots) {
-                let s: f64 = (0..8).map(|k| -n[k] * q.dot(ds[c.slots[k] as usize])).sum();
-                col.push(s);
-            }
+            gn.push(pt.weight * self.robust.irls_weight(hit.residual), |d| {
+                (0..8)
+                    .map(|k| -n[k] * q.dot(d_slots[d][c.slots[k] as usize]))
+                    .sum()
+            });
         }
-        Ok(gauss_newton_matrix(&cols, &w))
+        Ok(gn.matrix())
     }
 }

@@ -21,7 +21,7 @@
 //! [`bins`]), searching the point's bin and its neighbours within `2h`; a point farther than
 //! that from every triangle gets the constant cost `rho(2h)` and no gradient.
 
-use crate::cost::{frame_points, gauss_newton_matrix, Cost, FrameCost, ObservedPoint, Robust};
+use crate::cost::{frame_points, Cost, FrameCost, GaussNewtonColumns, ObservedPoint, Robust};
 use crate::Error;
 use bins::FaceBins;
 use cutfem::fem::grid::INACTIVE;
@@ -378,15 +378,13 @@ impl Cost for SurfaceCost {
     ) -> Result<Vec<f64>, Error> {
         let points = self.points(frame);
         let hits = self.residuals(frame, u);
-        let mut cols = vec![Vec::with_capacity(points.len()); du.len()];
-        let mut w = Vec::with_capacity(points.len());
+        let mut gn = GaussNewtonColumns::new(du.len(), points.len());
         for (pt, hit) in points.iter().zip(&hits) {
             let Some(hit) = hit else { continue };
-            w.push(pt.weight * self.robust.irls_weight(hit.residual));
-            for (col, d) in cols.iter_mut().zip(du) {
-                col.push(self.directional(hit, d.as_slice()));
-            }
+            gn.push(pt.weight * self.robust.irls_weight(hit.residual), |d| {
+                self.directional(hit, du[d].as_slice())
+            });
         }
-        Ok(gauss_newton_matrix(&cols, &w))
+        Ok(gn.matrix())
     }
 }

@@ -17,12 +17,10 @@
 use adjoint::cost::Robust;
 use adjoint::fit::{scene_problem, scene_simulation, CostKind};
 use adjoint::observations::Observations;
-use adjoint::observe::{observe_mesh, place_cameras, record, Camera, RigParams};
+use adjoint::observe::{rig_around, synthesize, RigParams};
 use adjoint::params::ParamSet;
 use adjoint::problem::Problem;
-use cutfem::fem::Simulation;
 use cutfem::scene::Scene;
-use cutfem::surface::extract_surface;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -199,37 +197,22 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// The rig of 4 cameras of 32 x 32 pixels (seed 0) at `radius` from the centre of the
-/// body's reference surface.
-fn rig(sim: &Simulation, radius: f64) -> Result<Vec<Camera>, String> {
-    let surface = extract_surface(&sim.grid.sdf);
-    let (lo, hi) = surface
-        .mesh
-        .bounding_box()
-        .ok_or("the body has no surface to observe")?;
-    let target = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
-    let rig = RigParams {
+/// The rig of 4 cameras of 32 x 32 pixels (seed 0) at `radius` from the centre of the body's
+/// reference surface.
+fn rig(radius: f64) -> RigParams {
+    RigParams {
         cameras: 4,
         pixels: 32,
         radius,
         seed: 0,
         ..RigParams::default()
-    };
-    Ok(place_cameras(target, &rig))
+    }
 }
 
 /// Noise-free observations of the scene's own simulation, frames 1..=steps, and the eyes of
 /// the cameras.
 fn observe(scene: &Scene, steps: usize, radius: f64) -> Result<(Observations, Vec<[f64; 3]>), String> {
-    let mut sim = scene_simulation(scene)?;
-    let surface = extract_surface(&sim.grid.sdf);
-    let cameras = rig(&sim, radius)?;
-    let mut obs = Observations::new();
-    for f in 1..=steps {
-        sim.step().map_err(|e| format!("truth step {f}: {e}"))?;
-        let mesh = sim.grid.deformed(&surface, &sim.u);
-        record(&mut obs, f, &observe_mesh(&mesh, &cameras, 0.0, 0, f));
-    }
+    let (obs, cameras) = synthesize(scene, &rig(radius), 0.0, steps, |_, _| {})?;
     Ok((obs, cameras.iter().map(|c| c.eye).collect()))
 }
 
@@ -417,10 +400,12 @@ pub fn memory_child(csv: &Path, steps: usize) -> Result<(), String> {
     let scene = load(&BODIES[2])?;
     let obs = Observations::read_csv(csv).map_err(|e| e.to_string())?;
     // the same rig as the parent's (deterministic)
-    let eyes: Vec<[f64; 3]> = rig(&scene_simulation(&scene)?, BODIES[2].radius)?
-        .iter()
-        .map(|c| c.eye)
-        .collect();
+    let surface = scene_simulation(&scene)?
+        .grid
+        .surface()
+        .map_err(|e| e.to_string())?;
+    let (_, cameras) = rig_around(&surface.mesh, &rig(BODIES[2].radius))?;
+    let eyes: Vec<[f64; 3]> = cameras.iter().map(|c| c.eye).collect();
     let (mut p, x) = problem(&scene, &obs, &eyes, steps)?;
     drop(obs);
     let dofs = p.sim.grid.dofs();

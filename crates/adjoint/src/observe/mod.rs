@@ -245,6 +245,16 @@ pub struct ObservationRun {
     pub observation_s: f64,
 }
 
+/// The rig of `rig` cameras around the centre of `mesh`'s bounding box (a body's reference
+/// surface): the target and the cameras. Errors when the mesh is empty.
+pub fn rig_around(mesh: &TriMesh, rig: &RigParams) -> Result<([f64; 3], Vec<Camera>), Error> {
+    let (lo, hi) = mesh
+        .bounding_box()
+        .ok_or_else(|| Error::invalid("the body has no surface to observe"))?;
+    let target = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
+    Ok((target, place_cameras(target, rig)))
+}
+
 /// Runs `sim` from its current state up to the last of `frames` (sorted ascending, each once:
 /// a frame out of order is not observed; frame 0
 /// is the state before the first step) and observes each of `frames` with a rig of `rig`
@@ -263,12 +273,7 @@ pub fn observe_run(
         return Err(Error::Invalid(format!("noise must be non-negative, got {sigma}")));
     }
     let surface = sim.grid.surface()?;
-    let (lo, hi) = surface
-        .mesh
-        .bounding_box()
-        .ok_or_else(|| Error::invalid("the body has no surface to observe"))?;
-    let target = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
-    let cameras = place_cameras(target, rig);
+    let (target, cameras) = rig_around(&surface.mesh, rig)?;
     let mut run = ObservationRun {
         observations: Observations::new(),
         cameras,
