@@ -30,6 +30,17 @@ pub enum Error {
         /// what is wrong
         msg: String,
     },
+    /// A line of a JSON-lines file (a fit log, a diagnosis history) is not what it should be;
+    /// the location is written `file:line` as compilers do.
+    #[error("{}:{line}: {msg}", path.display())]
+    Line {
+        /// the file
+        path: PathBuf,
+        /// 1-based line number
+        line: usize,
+        /// what is wrong
+        msg: String,
+    },
     /// A file's content is wrong as a whole (a JSON document, a scene that cannot be built, a
     /// log that belongs to another run); the message names the key when it can.
     #[error("{}: {msg}", path.display())]

@@ -13,7 +13,7 @@ use crate::problem::{Evaluation, Problem};
 pub use crate::statistics::{invert_small, uncertainty, Uncertainty};
 use crate::Error;
 use cutfem::fem::advect::Diffusion;
-use cutfem::fem::{Grid, Model, Simulation};
+use cutfem::fem::{Grid, Model};
 use cutfem::scene::Scene;
 use gpumat::Vec3;
 
@@ -30,45 +30,6 @@ pub fn point_cloud_cost(
         observed_frames(observations, &[]),
         robust,
     ))
-}
-
-/// The forward model of a scene on its grid: [`Scene::to_model`] (the built-in effects) plus
-/// what every model-level effect the scene switches on adds
-/// ([`crate::diagnosis::effects::Effect::apply_to_model`], e.g. `wind`'s external force), for
-/// the effects of [`crate::diagnosis::effects::extended_catalogue`]. Refuses effect names and
-/// sections that no effect claims ([`crate::diagnosis::effects::check_extensions`]).
-pub fn scene_model(scene: &Scene, grid: &Grid) -> Result<Model, Error> {
-    crate::diagnosis::effects::check_extensions(scene)?;
-    let mut model = scene.to_model();
-    for e in crate::diagnosis::effects::extended_catalogue() {
-        if scene.effect_on(e.name()) {
-            e.apply_to_model(scene, grid, &mut model)
-                .map_err(|why| Error::invalid(format!("{}: {why}", e.name())))?;
-        }
-    }
-    Ok(model)
-}
-
-/// The simulation of a scene (its grid, model and solver settings): the one place where every
-/// command (`simulate`, `observe`, `fit`, `gradcheck`, `diagnose`, the synthetic data) builds
-/// it, `[numerics]` included. Errors name the scene file.
-pub fn scene_simulation(scene: &Scene) -> Result<Simulation, Error> {
-    let grid = scene.grid()?;
-    let model = scene_model(scene, &grid).map_err(|e| Error::format(&scene.path, e.to_string()))?;
-    // a model that cannot be simulated names the scene and the key
-    let mut sim = Simulation::new(grid, model).map_err(|e| Error::format(&scene.path, e.to_string()))?;
-    sim.solver = solver_settings(scene, sim.solver);
-    Ok(sim)
-}
-
-/// `settings` with the scene's `[numerics]` solver keys (CG tolerance and iteration limit,
-/// preconditioner): every command solves a scene's steps the same way.
-pub fn solver_settings(scene: &Scene, settings: cutfem::fem::SolverSettings) -> cutfem::fem::SolverSettings {
-    let mut s = settings;
-    s.cg.tolerance = scene.numerics.cg_tolerance;
-    s.cg.max_iterations = scene.numerics.cg_max_iterations;
-    s.preconditioner = scene.numerics.preconditioner;
-    s
 }
 
 /// Which point-to-surface residual a fit uses.
@@ -149,7 +110,7 @@ pub fn scene_problem_reach(
     eyes: &[[f64; 3]],
     reach: Option<f64>,
 ) -> Result<Problem, Error> {
-    let sim = scene_simulation(scene)?;
+    let sim = scene.build_simulation()?;
     let mut params = params;
     if params.params.contains(&crate::params::Param::StiffnessField) {
         let cells = scene

@@ -25,7 +25,6 @@
 //! finer cell's centre from the cell of `r` containing it, an external force's coefficients
 //! are copied to the effect rebuilt on the other grid.
 
-use crate::fit::{scene_model, solver_settings};
 use crate::Error;
 use cutfem::fem::grid::{available_memory, BYTES_PER_NODE, INACTIVE};
 use cutfem::fem::{Grid, Model, Simulation};
@@ -251,7 +250,7 @@ fn surface_points(grid: &Grid) -> (Vec<[f64; 3]>, Vec<f64>) {
 /// The simulation grid of `scene` at `resolution` and `model` carried over to it.
 fn at_resolution(scene: &Scene, grid: &Grid, model: &Model, resolution: f64) -> Result<(Grid, Model), Error> {
     let other = scene.grid_at(Some(resolution))?;
-    let mut m = scene_model(scene, &other)?;
+    let mut m = scene.build_model(&other)?;
     carry_model(model, grid, &mut m, &other);
     Ok((other, m))
 }
@@ -306,7 +305,7 @@ fn run(
     progress: &mut dyn FnMut(&str, usize, usize),
 ) -> Result<Track, Error> {
     let mut sim = Simulation::new(grid, model).map_err(|e| Error::step(level, e))?;
-    sim.solver = solver_settings(scene, sim.solver);
+    sim.solver = scene.solver_settings(sim.solver);
     let mut out = Vec::with_capacity(frames.len());
     for f in 1..=steps {
         sim.step()

@@ -1,10 +1,10 @@
 //! Every command builds its simulation from a scene in one place
-//! (`adjoint::fit::scene_simulation`): `simulate`, `observe` and the synthetic data call it,
+//! (`cutfem::scene::Scene::build_simulation`): `simulate`, `observe` and the synthetic data call it,
 //! `fit`, `gradcheck` and `diagnose` through `scene_problem`. Here a scene with every
 //! `[numerics]` key away from its default, and its model, reach the simulation both ways.
 
 use adjoint::cost::Robust;
-use adjoint::fit::{scene_problem, scene_simulation, CostKind};
+use adjoint::fit::{scene_problem, CostKind};
 use adjoint::observations::{Observations, ObservedPoint};
 use adjoint::params::ParamSet;
 use cutfem::fem::advect::DisplacementExtension;
@@ -80,8 +80,8 @@ fn check(sim: &Simulation, how: &str) {
 fn every_command_builds_the_scene_s_simulation_with_its_numerics() {
     let scene = Scene::parse(SCENE, Path::new("build.toml")).unwrap();
     assert_eq!(scene.numerics.diffusion, DisplacementExtension::Linear);
-    let direct = scene_simulation(&scene).unwrap();
-    check(&direct, "scene_simulation");
+    let direct = scene.build_simulation().unwrap();
+    check(&direct, "Scene::build_simulation");
     let mut obs = Observations::new();
     obs.push(1, ObservedPoint::new([0.0, 0.6, 0.0]));
     let params = ParamSet::parse(&["young,poisson"]).unwrap();
@@ -105,7 +105,10 @@ fn every_command_builds_the_scene_s_simulation_with_its_numerics() {
     );
     // and a default scene gets the defaults
     let plain = SCENE[..SCENE.find("[numerics]").unwrap()].to_string();
-    let sim = scene_simulation(&Scene::parse(&plain, Path::new("plain.toml")).unwrap()).unwrap();
+    let sim = Scene::parse(&plain, Path::new("plain.toml"))
+        .unwrap()
+        .build_simulation()
+        .unwrap();
     assert_eq!(sim.solver.preconditioner, Preconditioner::default());
     assert_eq!(sim.model.element, Element::default());
     assert_eq!(sim.grid.surface_method, SurfaceMethod::default());

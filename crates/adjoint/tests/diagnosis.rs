@@ -276,7 +276,7 @@ fn inclusion_case(make: fn(&[&str]) -> Scene, c: [f64; 3], r: f64, sigmas: &[f64
         let case = Case::observe(&make(&effects), sigma, inclusion(c, r));
         let d = case.diagnose(&make(&effects));
         let refined = check(&case, &d, "stiffness_field", sigma);
-        let sim = adjoint::fit::scene_simulation(&refined.scene).unwrap();
+        let sim = refined.scene.build_simulation().unwrap();
         let grid = &sim.grid;
         let s = refined.model.stiffness_scale.as_deref().expect("field");
         let k = (0..s.len()).max_by(|&a, &b| s[a].total_cmp(&s[b])).unwrap();

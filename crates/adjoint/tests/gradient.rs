@@ -379,8 +379,8 @@ fn ray_residual_gradient_matches_finite_differences() {
 /// An external force `sum_k c_k F_k` with the wind's three surface-traction fields
 /// (`F_d[i] = A_i e_d`) and a fourth, non-uniform one (a twist about the box's axis).
 fn with_external_force(mut m: Model, coefficients: [f64; 4]) -> Model {
-    use adjoint::diagnosis::effects::wind;
     use cutfem::fem::ExternalForce;
+    use cutfem::scene::effects::wind;
     let g = grid();
     let mut basis = wind::basis(&g);
     let areas = wind::node_areas(&g);

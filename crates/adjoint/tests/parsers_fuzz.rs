@@ -1,6 +1,6 @@
 //! Fuzzing the observation CSV parser (`Observations::parse_csv`, `read_csv`), the camera file
 //! parser (`adjoint::camera_file::CameraFile::read`, then its `eyes` and `cameras`) and the
-//! scene's extension sections (`adjoint::fit::scene_simulation`, which checks them) with
+//! scene's extension sections (`Scene::build_simulation`, which checks them) with
 //! proptest: random bytes and random mutations of valid files (byte flips, truncation,
 //! duplicated, removed and swapped lines, huge, tiny, negative, non-finite and overflowing
 //! numbers, inserted syntax). Whatever the input: `Ok` or an `Err` naming the file, never a
@@ -14,7 +14,6 @@
 mod fuzz_common;
 
 use adjoint::camera_file::CameraFile;
-use adjoint::fit::scene_simulation;
 use adjoint::observations::Observations;
 use cutfem::scene::Scene;
 use fuzz_common::{apply, bytes, config, mutations};
@@ -114,7 +113,7 @@ fn seeds_are_valid() {
     let p = scratch("seed.cameras.json", CAMERA_SEED.as_bytes());
     assert_eq!(CameraFile::read(&p).unwrap().cameras().unwrap().len(), 2);
     let scene = Scene::parse(WIND_SEED, Path::new("seed.toml")).unwrap();
-    scene_simulation(&scene).unwrap();
+    scene.build_simulation().unwrap();
 }
 
 proptest! {
@@ -155,7 +154,7 @@ proptest! {
                     (0..3).all(|a| (hi[a] - lo[a]).abs() <= 2.0)
                 });
             if small {
-                if let Err(e) = scene_simulation(&scene) {
+                if let Err(e) = scene.build_simulation() {
                     prop_assert!(!e.to_string().is_empty());
                 }
             }

@@ -2,7 +2,6 @@
 //! differences under refinement for a bending cantilever, and the model state carried between
 //! grids.
 
-use adjoint::fit::scene_simulation;
 use adjoint::refine::{carry_model, displacement_at, refine_check, RefineParams};
 use cutfem::fem::Grid;
 use cutfem::scene::Scene;
@@ -15,7 +14,7 @@ fn scene(text: &str) -> Scene {
 
 /// The check of a scene's own model, with the default parameters.
 fn check_scene(s: &Scene) -> adjoint::refine::RefineCheck {
-    let sim = scene_simulation(s).unwrap();
+    let sim = s.build_simulation().unwrap();
     refine_check(
         s,
         &sim.grid,
@@ -96,7 +95,7 @@ fn cantilever_differences_fall_under_refinement() {
 #[test]
 fn displacement_at_interpolates_the_fem_field() {
     let s = scene(CANTILEVER);
-    let sim = scene_simulation(&s).unwrap();
+    let sim = s.build_simulation().unwrap();
     let g: &Grid = &sim.grid;
     let field = |p: Vec3<f64>| [0.3 * p.x - 0.1 * p.y, 0.2 * p.z + 1.0, p.x + p.y + p.z];
     let u = Matrix::from_fn(g.dofs(), 1, 1, |i, _, _| Vec3::from_array(field(g.positions[i])));
@@ -116,7 +115,7 @@ fn displacement_at_interpolates_the_fem_field() {
 #[test]
 fn stiffness_field_carries_to_a_finer_grid() {
     let s = scene(CANTILEVER);
-    let sim = scene_simulation(&s).unwrap();
+    let sim = s.build_simulation().unwrap();
     let (g, mut model) = (&sim.grid, sim.model.clone());
     // factor: 1 + the cell's x index
     let scale: Vec<f64> = g.cells.iter().map(|c| 1.0 + c.coord[0] as f64).collect();
@@ -124,7 +123,7 @@ fn stiffness_field_carries_to_a_finer_grid() {
     model.young = 1234.0;
     let fine_sdf = s.body_sdf_at(Some(24.0)).unwrap();
     let fine = Grid::new(fine_sdf).unwrap();
-    let mut to = adjoint::fit::scene_model(&s, &fine).unwrap();
+    let mut to = s.build_model(&fine).unwrap();
     carry_model(&model, g, &mut to, &fine);
     assert_eq!(to.young, 1234.0);
     let got = to.stiffness_scale.as_deref().expect("field");

@@ -15,7 +15,7 @@
 //! peak) after the gradient.
 
 use adjoint::cost::Robust;
-use adjoint::fit::{scene_problem, scene_simulation, CostKind};
+use adjoint::fit::{scene_problem, CostKind};
 use adjoint::observations::Observations;
 use adjoint::observe::{rig_around, synthesize, RigParams};
 use adjoint::params::ParamSet;
@@ -400,9 +400,9 @@ pub fn memory_child(csv: &Path, steps: usize) -> Result<(), String> {
     let scene = load(&BODIES[2])?;
     let obs = Observations::read_csv(csv).map_err(|e| e.to_string())?;
     // the same rig as the parent's (deterministic)
-    let surface = scene_simulation(&scene)?
-        .grid
-        .surface()
+    let surface = scene
+        .grid()
+        .and_then(|g| g.surface())
         .map_err(|e| e.to_string())?;
     let (_, cameras) = rig_around(&surface.mesh, &rig(BODIES[2].radius))?;
     let eyes: Vec<[f64; 3]> = cameras.iter().map(|c| c.eye).collect();

@@ -6,15 +6,16 @@
 //! `corotation`, `stiffness_field`, `initial_velocity`; with `[model]` absent, every effect
 //! whose section is present is on, plus corotation.
 //!
-//! Effects defined outside this crate (extensions, e.g. the adjoint layer's tutorial effect
-//! `wind`, `docs/effects-tutorial.md`) own their section: any top-level table that is not a
-//! core section is kept in [`Scene::extensions`] for the layer that defines the effect, which
-//! validates its name and keys (`adjoint::fit::scene_model`, through which every `softbody`
-//! command builds its model) and builds its physics; [`Scene::to_model`] alone leaves them out.
-//! An effect name in `[model].effects` that is not a core effect is such an extension effect.
+//! Effects with their own section (e.g. the tutorial effect `wind`,
+//! `docs/effects-tutorial.md`) own it: any top-level table that is not a core section is kept
+//! in [`Scene::extensions`], and the effect ([`effects`]) validates its keys and builds its
+//! physics. [`Scene::build_model`] (through which every `softbody` command builds its model)
+//! refuses sections and effect names no effect claims and applies those that are on;
+//! [`Scene::to_model`] alone leaves them out.
 
 mod build;
 mod check;
+pub mod effects;
 mod extensions;
 mod mesh_cache;
 mod numerics;

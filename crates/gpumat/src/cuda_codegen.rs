@@ -1,7 +1,7 @@
 //! CUDA text of a fused expression: the kernel the CUDA backend compiles (with NVRTC) for one
 //! assignment. Built from the same op table as the CPU loop ([`crate::ops`]), so both
 //! backends evaluate the same tree. Compiling and launching it is the CUDA backend's job
-//! (feature `cuda`); generating the text needs no GPU and is tested here.
+//! (not built yet: [`crate::backend`]); generating the text needs no GPU and is tested here.
 //!
 //! The kernel has one thread per output element: it decodes `(r, c, b)` from the linear
 //! index, evaluates the tree and stores the result once.

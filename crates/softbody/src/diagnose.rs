@@ -103,7 +103,7 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     let entries = history::read(&hist_path)?;
 
     // pictures
-    let mut sim = adjoint::fit::scene_simulation(job.scene)?;
+    let mut sim = job.scene.build_simulation().map_err(|e| e.to_string())?;
     let (reference, worst) =
         adjoint::diagnosis::residuals::surfaces_at(&mut sim, d.model.clone(), d.worst_frame)?;
     let gravity = job

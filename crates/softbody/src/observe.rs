@@ -196,7 +196,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let files = crate::out_dir::OutFiles::begin(&targets)?;
 
     // the scene's model with its model-level effects (e.g. `wind`)
-    let mut sim = adjoint::fit::scene_simulation(&scene)?;
+    let mut sim = scene.build_simulation().map_err(|e| e.to_string())?;
     let pb = progress::bar(last as u64, "observe", a.json);
     let run = observe_run(&mut sim, &rig, a.noise, &frames, |_| pb.inc(1))
         .map_err(|e| format!("{}: {e}", a.scene.display()))?;

@@ -95,7 +95,7 @@ pub fn run(a: Args) -> Result<(), String> {
     std::fs::create_dir_all(&frames_dir).map_err(|e| format!("{}: {e}", frames_dir.display()))?;
 
     // the scene's model with its model-level effects (e.g. `wind`)
-    let mut sim = adjoint::fit::scene_simulation(&scene)?;
+    let mut sim = scene.build_simulation().map_err(|e| e.to_string())?;
     let surface = sim
         .grid
         .surface()

@@ -112,7 +112,11 @@ pub fn read(path: &Path) -> Result<Vec<Entry>, Error> {
             serde_json::from_str::<Value>(l)
                 .ok()
                 .and_then(|v| Entry::from_json(&v))
-                .ok_or_else(|| Error::format(path, format!("{}: not a history entry", i + 1)))
+                .ok_or_else(|| Error::Line {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    msg: "not a history entry".into(),
+                })
         })
         .collect()
 }

@@ -317,7 +317,7 @@ pub fn synthesize(
     steps: usize,
     edit: impl FnOnce(&cutfem::fem::Grid, &mut cutfem::fem::Model),
 ) -> Result<(Observations, Vec<Camera>), Error> {
-    let mut sim = crate::fit::scene_simulation(scene)?;
+    let mut sim = scene.build_simulation()?;
     let mut model = sim.model.clone();
     edit(&sim.grid, &mut model);
     sim.reset(model)?;

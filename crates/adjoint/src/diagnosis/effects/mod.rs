@@ -18,23 +18,22 @@
 //! from a plane through the lowest observed points (a plane far away has no contact, hence no
 //! gradient), corotation (no parameter) is switched on and the cost compared.
 //!
-//! Adding an effect: implement [`Effect`] in a new file of this folder, declare the file
-//! (`pub mod`) and list the effect in [`catalogue`] or [`extended_catalogue`]; nothing outside
-//! this folder changes. Its scene section is its own: cutfem keeps any top-level table that is
-//! not a core section ([`cutfem::scene::Scene::extensions`]), the effect reads it with
-//! [`cutfem::scene::Scene::extension`] into its own `deny_unknown_fields` struct, and
-//! [`check_extensions`] (called by [`crate::fit::scene_model`]) refuses sections and effect
-//! names no effect claims. An effect whose physics is a nodal force linear in
-//! its parameters and independent of the state needs nothing else: its
-//! [`Effect::apply_to_model`] adds basis fields to the model's
-//! [`cutfem::fem::ExternalForce`], whose forward (cutfem), adjoint ([`crate::backward`]),
-//! tangent-linear and parameter (`external_force`) code is generic. [`wind`] is the worked
-//! example; `docs/effects-tutorial.md` walks through it.
+//! Adding an effect with its own scene section takes two files, one per half. The forward half
+//! (its section and how it changes the model) is a [`cutfem::scene::effects::SectionEffect`]
+//! in `cutfem/src/scene/effects/`, so that cutfem builds the complete model on its own
+//! ([`cutfem::scene::Scene::build_model`], which also refuses sections and effect names no
+//! effect claims). The reconstruction half is an [`Effect`] of the same name in a new file of
+//! this folder, listed in [`catalogue`] or [`extended_catalogue`] (a test checks that the
+//! extended catalogue and cutfem's effects name the same effects). An effect whose physics is
+//! a nodal force linear in its parameters and independent of the state needs nothing else: its
+//! forward half adds basis fields to the model's [`cutfem::fem::ExternalForce`], whose forward,
+//! adjoint ([`crate::backward`]), tangent-linear and parameter (`external_force`) code is
+//! generic. [`wind`] is the worked example; `docs/effects-tutorial.md` walks through it.
 //!
 //! [`catalogue`] holds the effects a diagnosis probes; [`extended_catalogue`] adds those it
 //! does not (today `wind`: a uniform surface traction on a homogeneous body pulls almost like
 //! gravity, and a probe of it would compete with gravity's). Scenes may switch on any effect
-//! of the extended catalogue; [`crate::fit::scene_model`] builds the model-level ones.
+//! of the extended catalogue.
 
 mod corotation;
 mod damping;
@@ -55,7 +54,7 @@ pub use wind::Wind;
 use crate::observations::Observations;
 use crate::params::Param;
 use crate::Error;
-use cutfem::fem::{Grid, Model};
+use cutfem::fem::Model;
 use cutfem::scene::{ModelSection, Scene};
 
 /// How a diagnosis scores an effect the model lacks.
@@ -99,14 +98,6 @@ pub trait Effect: Send + Sync {
     fn write_back(&self, scene: &mut Scene, model: &Model);
     /// The TOML the user adds to the scene to switch it on with the values of `model`.
     fn suggestion(&self, model: &Model) -> String;
-    /// Model-level effects: adds the effect's physics, as `scene` describes it, to the forward
-    /// model on `grid` (typically basis fields of [`Model::external_force`]). Called by
-    /// [`crate::fit::scene_model`] for every effect of [`extended_catalogue`] the scene
-    /// switches on. The default does nothing: the built-in effects are built by
-    /// [`Scene::to_model`].
-    fn apply_to_model(&self, _scene: &Scene, _grid: &Grid, _model: &mut Model) -> Result<(), Error> {
-        Ok(())
-    }
 }
 
 /// The effects of the vocabulary, in the interface's order.
@@ -143,40 +134,6 @@ pub fn explicit_effects(scene: &mut Scene) {
             stiffness_field: None,
         });
     }
-}
-
-/// Checks the scene's extension effects (module docs): every effect name in `[model].effects`
-/// and every extension section must belong to an effect of the [`extended_catalogue`]. The
-/// error names the file and, for a section, its line.
-pub fn check_extensions(scene: &Scene) -> Result<(), Error> {
-    let known: Vec<&'static str> = extended_catalogue().iter().map(|e| e.name()).collect();
-    let file = scene.path.display();
-    if let Some(m) = &scene.model {
-        if let Some(e) = m.effects.iter().find(|e| !known.contains(&e.as_str())) {
-            return Err(Error::Invalid(format!(
-                "{file}: model.effects: unknown effect `{e}` (known: {})",
-                known.join(", ")
-            )));
-        }
-    }
-    if let Some((name, x)) = scene
-        .extensions
-        .iter()
-        .find(|(name, _)| !known.contains(&name.as_str()))
-    {
-        let own: Vec<&str> = known
-            .iter()
-            .copied()
-            .filter(|e| !cutfem::scene::EFFECTS.contains(e))
-            .collect();
-        return Err(Error::Invalid(format!(
-            "{file}: {}unknown section [{name}] (core sections: {}; effects with their own section: {})",
-            x.location(),
-            cutfem::scene::SECTIONS.join(", "),
-            own.join(", ")
-        )));
-    }
-    Ok(())
 }
 
 /// Adds `name` to `[model].effects` (once).
@@ -219,5 +176,15 @@ pub(crate) fn short(x: f64) -> String {
         s.trim_end_matches('0').trim_end_matches('.').to_string()
     } else {
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The reconstruction halves name exactly the effects the forward model knows.
+    #[test]
+    fn the_catalogue_and_the_forward_effects_name_the_same_effects() {
+        let ours: Vec<&str> = super::extended_catalogue().iter().map(|e| e.name()).collect();
+        assert_eq!(ours, cutfem::scene::effects::effect_names());
     }
 }
