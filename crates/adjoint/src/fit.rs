@@ -266,30 +266,40 @@ impl GaussNewtonObjective for FitObjective<'_> {
 
 /// Reads a physical parameter component by its label ([`ParamSet::values`]).
 pub fn get_physical(model: &Model, label: &str) -> Option<f64> {
-    let comp = |v: Vec3<f64>, c: &str| {
-        let a = v.to_array();
+    physical_slot(&mut model.clone(), label).map(|v| *v)
+}
+
+/// Writes a physical parameter component by its label; false when the label is unknown.
+pub fn set_physical(model: &mut Model, label: &str, value: f64) -> bool {
+    physical_slot(model, label).map(|v| *v = value).is_some()
+}
+
+/// The physical value labelled `label` in `model` (the labels of
+/// [`crate::params::ParamSet::values`]), to read or write; `None` when the model lacks it.
+fn physical_slot<'m>(model: &'m mut Model, label: &str) -> Option<&'m mut f64> {
+    fn lane<'v>(v: &'v mut Vec3<f64>, c: &str) -> Option<&'v mut f64> {
         match c {
-            "x" => Some(a[0]),
-            "y" => Some(a[1]),
-            "z" => Some(a[2]),
+            "x" => Some(&mut v.x),
+            "y" => Some(&mut v.y),
+            "z" => Some(&mut v.z),
             _ => None,
         }
-    };
+    }
     let (head, tail) = label.rsplit_once('.').unwrap_or((label, ""));
     match (head, tail) {
-        ("young", "") => Some(model.young),
-        ("poisson", "") => Some(model.poisson),
-        ("density", "") => Some(model.density),
-        ("damping_mass", "") => Some(model.damping_mass),
-        ("damping_stiffness", "") => Some(model.damping_stiffness),
-        ("gravity", c) => comp(model.gravity, c),
-        ("initial_velocity", c) => comp(model.initial_velocity, c),
-        ("initial_angular_velocity", c) => comp(model.initial_angular_velocity, c),
-        ("ground.normal", c) => comp(model.ground.as_ref()?.normal, c),
-        ("ground", "height") => Some(model.ground.as_ref()?.height),
+        ("young", "") => Some(&mut model.young),
+        ("poisson", "") => Some(&mut model.poisson),
+        ("density", "") => Some(&mut model.density),
+        ("damping_mass", "") => Some(&mut model.damping_mass),
+        ("damping_stiffness", "") => Some(&mut model.damping_stiffness),
+        ("gravity", c) => lane(&mut model.gravity, c),
+        ("initial_velocity", c) => lane(&mut model.initial_velocity, c),
+        ("initial_angular_velocity", c) => lane(&mut model.initial_angular_velocity, c),
+        ("ground.normal", c) => lane(&mut model.ground.as_mut()?.normal, c),
+        ("ground", "height") => Some(&mut model.ground.as_mut()?.height),
         _ => {
-            let (e, k) = external_index(model, label)?;
-            Some(e.coefficients[k])
+            let k = external_index(model, label)?.1;
+            Some(&mut model.external_force.as_mut()?.coefficients[k])
         }
     }
 }
@@ -307,44 +317,4 @@ fn external_index<'m>(model: &'m Model, label: &str) -> Option<(&'m cutfem::fem:
         (k < e.len()).then_some(k)
     })?;
     Some((e, k))
-}
-
-/// Writes a physical parameter component by its label; false when the label is unknown.
-pub fn set_physical(model: &mut Model, label: &str, value: f64) -> bool {
-    let set = |v: &mut Vec3<f64>, c: &str| {
-        let mut a = v.to_array();
-        let i = match c {
-            "x" => 0,
-            "y" => 1,
-            "z" => 2,
-            _ => return false,
-        };
-        a[i] = value;
-        *v = Vec3::from_array(a);
-        true
-    };
-    let (head, tail) = label.rsplit_once('.').unwrap_or((label, ""));
-    match (head, tail) {
-        ("young", "") => model.young = value,
-        ("poisson", "") => model.poisson = value,
-        ("density", "") => model.density = value,
-        ("damping_mass", "") => model.damping_mass = value,
-        ("damping_stiffness", "") => model.damping_stiffness = value,
-        ("gravity", c) => return set(&mut model.gravity, c),
-        ("initial_velocity", c) => return set(&mut model.initial_velocity, c),
-        ("initial_angular_velocity", c) => return set(&mut model.initial_angular_velocity, c),
-        ("ground.normal", c) => match model.ground.as_mut() {
-            Some(g) => return set(&mut g.normal, c),
-            None => return false,
-        },
-        ("ground", "height") => match model.ground.as_mut() {
-            Some(g) => g.height = value,
-            None => return false,
-        },
-        _ => match external_index(model, label).map(|(_, k)| k) {
-            Some(k) => model.external_force.as_mut().expect("found").coefficients[k] = value,
-            None => return false,
-        },
-    }
-    true
 }

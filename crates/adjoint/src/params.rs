@@ -324,21 +324,19 @@ impl ParamSet {
                     .collect::<Vec<_>>()
             };
             match p {
-                Param::Young => out.push(("young".into(), model.young)),
-                Param::Poisson => out.push(("poisson".into(), model.poisson)),
-                Param::Density => out.push(("density".into(), model.density)),
-                Param::DampingMass => out.push(("damping_mass".into(), model.damping_mass)),
-                Param::DampingStiffness => out.push(("damping_stiffness".into(), model.damping_stiffness)),
-                Param::Gravity => out.extend(xyz("gravity", model.gravity)),
+                Param::Young => out.push((p.name().into(), model.young)),
+                Param::Poisson => out.push((p.name().into(), model.poisson)),
+                Param::Density => out.push((p.name().into(), model.density)),
+                Param::DampingMass => out.push((p.name().into(), model.damping_mass)),
+                Param::DampingStiffness => out.push((p.name().into(), model.damping_stiffness)),
+                Param::Gravity => out.extend(xyz(p.name(), model.gravity)),
                 Param::Ground => {
                     let g = model.ground.as_ref().expect("checked");
                     out.extend(xyz("ground.normal", g.normal));
                     out.push(("ground.height".into(), g.height));
                 }
-                Param::InitialVelocity => out.extend(xyz("initial_velocity", model.initial_velocity)),
-                Param::InitialAngularVelocity => {
-                    out.extend(xyz("initial_angular_velocity", model.initial_angular_velocity))
-                }
+                Param::InitialVelocity => out.extend(xyz(p.name(), model.initial_velocity)),
+                Param::InitialAngularVelocity => out.extend(xyz(p.name(), model.initial_angular_velocity)),
                 Param::StiffnessField => {
                     // the factors' range: the coefficients themselves are in `x`
                     let s = model.stiffness_scale.as_deref().unwrap_or(&[]);
@@ -498,20 +496,18 @@ impl ParamSet {
         };
         for p in &self.params {
             match p {
-                Param::Young => out.push(("young".into(), young_poisson_gradient(model, g).0)),
-                Param::Poisson => out.push(("poisson".into(), young_poisson_gradient(model, g).1)),
-                Param::Density => out.push(("density".into(), g.density)),
-                Param::DampingMass => out.push(("damping_mass".into(), g.damping_mass)),
-                Param::DampingStiffness => out.push(("damping_stiffness".into(), g.damping_stiffness)),
-                Param::Gravity => out.extend(xyz("gravity", g.gravity)),
+                Param::Young => out.push((p.name().into(), young_poisson_gradient(model, g).0)),
+                Param::Poisson => out.push((p.name().into(), young_poisson_gradient(model, g).1)),
+                Param::Density => out.push((p.name().into(), g.density)),
+                Param::DampingMass => out.push((p.name().into(), g.damping_mass)),
+                Param::DampingStiffness => out.push((p.name().into(), g.damping_stiffness)),
+                Param::Gravity => out.extend(xyz(p.name(), g.gravity)),
                 Param::Ground => {
                     out.extend(xyz("ground.normal", g.ground_normal));
                     out.push(("ground.height".into(), g.ground_height));
                 }
-                Param::InitialVelocity => out.extend(xyz("initial_velocity", g.initial_velocity)),
-                Param::InitialAngularVelocity => {
-                    out.extend(xyz("initial_angular_velocity", g.initial_angular_velocity))
-                }
+                Param::InitialVelocity => out.extend(xyz(p.name(), g.initial_velocity)),
+                Param::InitialAngularVelocity => out.extend(xyz(p.name(), g.initial_angular_velocity)),
                 Param::StiffnessField => {
                     // per coefficient, at the model's factors (the coefficients are log factors)
                     let labels = self.field.as_ref().map(|f| f.labels()).unwrap_or_default();
