@@ -21,13 +21,16 @@
 //!   tolerant of diverging evaluations;
 //! * [`observe`] and [`observations`]: virtual RGB-D cameras and the observation CSV;
 //!   [`camera_file`]: the camera file beside a CSV, checked against it;
-//! * [`fit`]: a scene's reconstruction problem, the optimizer objective; [`gradcheck`]: the
-//!   adjoint gradient against finite differences over a sweep of steps with the Taylor
-//!   remainder test of [`taylor`];
+//! * [`fit`]: a scene's reconstruction problem (on the simulation that
+//!   `cutfem::scene::Scene::build_simulation` builds), the optimizer objective, the fit log;
+//!   [`gradcheck`]: the adjoint gradient against finite differences over a sweep of steps with
+//!   the Taylor remainder test of [`taylor`];
 //! * [`statistics`]: standard errors of a fit, weighted consistently;
 //! * [`refine`]: the discretisation share of the error (the same state at `r/2`, `r`, `2r`);
-//! * [`diagnosis`]: the effects as first-class parts of the model; where a fitted model fails
-//!   and which effect is missing (score tests, short refits, BIC).
+//! * [`diagnosis`]: the reconstruction half of the effects (their parameters, probes and
+//!   write-back; the forward half is `cutfem::scene::effects`); where a fitted model fails
+//!   and which effect is missing (score tests, short refits, BIC);
+//! * [`error`]: the one error type, [`Error`].
 
 pub mod backward;
 pub mod camera_file;

@@ -14,7 +14,9 @@
 //! and [`render`] turn states into PLY meshes and PNG pictures ([`render::raster`] is the one
 //! z-buffer of the workspace, also behind the virtual depth cameras; [`render::font`] the
 //! text, DejaVu Sans); [`scene`] reads the TOML scene
-//! files of `docs/interface.md`. The Newmark coefficients live in [`fem::NewmarkCoefficients`],
+//! files of `docs/interface.md` and builds from them the one simulation every command runs
+//! ([`scene::Scene::build_simulation`]: grid, complete model with the forward half of every
+//! effect, [`scene::effects`], and the `[numerics]` solver settings). The Newmark coefficients live in [`fem::NewmarkCoefficients`],
 //! the `[f64; 3]` helpers in [`v3`].
 //!
 //! ```

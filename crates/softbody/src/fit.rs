@@ -11,12 +11,11 @@
 use crate::problem_args::{Loaded, ProblemArgs};
 use crate::progress;
 use adjoint::cost::Robust;
-use adjoint::fit::{check_observations, find_evaluation, scene_problem, FitObjective};
-use adjoint::optim::{minimize, OptimParams, Optimizer};
+use adjoint::fit::{check_observations, scene_problem};
+use adjoint::optim::Optimizer;
 use adjoint::problem::Evaluation;
 use cutfem::scene::Scene;
 use serde_json::{json, Value};
-use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -106,7 +105,7 @@ pub fn fit_section(scene: &Scene) -> Result<FitSection, String> {
 }
 
 pub use adjoint::fit::session::values_json;
-use adjoint::fit::session::FitLog;
+use adjoint::fit::session::{run_logged, FitLog, LoggedFit};
 
 /// `[{frame, rms, points, outside}]` of an evaluation.
 pub fn per_frame_json(ev: &Evaluation) -> Value {
@@ -186,51 +185,29 @@ pub fn run(args: Args) -> Result<(), String> {
     let ev_initial = check_observations(&mut problem, &obs, &args.problem.observations)?;
 
     let bar = progress::bar(iterations as u64 + 1, "fit", args.json);
-    let base = problem.base.clone();
-    let model_at = |x: &[f64]| {
-        let mut m = base.clone();
-        params.apply(x, &mut m);
-        m
-    };
-    let mut objective = FitObjective::new(&mut problem);
-    let evaluations = objective.evaluations.clone();
-    let oparams = OptimParams {
-        max_iterations: iterations,
-        ..OptimParams::default()
-    };
-    let mut log_error = None;
-    let result = minimize(optimizer, &mut objective, &x0, &oparams, &mut |rec| {
-        let ev = find_evaluation(&evaluations, &rec.x);
-        let values = params.values(&model_at(&rec.x));
-        if let Err(e) = log.record(rec, ev.as_ref().map(Evaluation::rms), &values) {
-            log_error = Some(e);
-            return ControlFlow::Break(());
-        }
-        bar.set_position(rec.iteration as u64 + 1);
-        bar.set_message(format!("fit {:.3e}", rec.cost));
-        ControlFlow::Continue(())
-    });
+    let fitted = run_logged(
+        &mut problem,
+        optimizer,
+        iterations,
+        &x0,
+        &mut log,
+        |iteration, cost| {
+            bar.set_position(iteration as u64 + 1);
+            bar.set_message(format!("fit {cost:.3e}"));
+        },
+    );
     bar.finish_and_clear();
-    if let Some(e) = log_error {
-        return Err(e.into());
-    }
-    let (x_best, info) = match result {
-        Ok(r) => r,
-        Err(e) => return Err(format!("fit: {e}")),
-    };
-    let ev_final = match objective.evaluation_at(&x_best) {
-        Some(e) => e,
-        None => objective
-            .problem
-            .evaluate(&x_best)
-            .map_err(|e| format!("the fitted model: {e}"))?,
-    };
-    let model = objective.problem.model_at(&x_best);
+    let LoggedFit {
+        x: x_best,
+        info,
+        evaluation: ev_final,
+        model,
+    } = fitted?;
     let final_values = params.values(&model);
     // uncertainty from the Gauss-Newton matrix at the result (one tangent-linear pass; not for
     // the many coefficients of a stiffness field)
     let unc = if x_best.len() <= 30 {
-        adjoint::fit::uncertainty(objective.problem, &x_best, &ev_final)?
+        adjoint::fit::uncertainty(&mut problem, &x_best, &ev_final)?
     } else {
         None
     };
@@ -243,10 +220,10 @@ pub fn run(args: Args) -> Result<(), String> {
     });
     // the discretisation share of the final rms, against the observations' noise floor
     let discretisation = (!args.no_refine_check).then(|| {
-        let grid = &objective.problem.sim.grid;
+        let grid = &problem.sim.grid;
         let noise = adjoint::diagnosis::residuals::noise_floor(&obs, &[], &eyes, 2.0 * grid.h());
         let params = adjoint::refine::RefineParams {
-            steps: Some(objective.problem.steps),
+            steps: Some(problem.steps),
             frames: Some(obs.frame_numbers()),
             ..Default::default()
         };

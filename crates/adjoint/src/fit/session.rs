@@ -7,10 +7,14 @@
 //! the parameters fitted), iteration numbers continue from the last one, and the restarted
 //! optimizer's iteration 0 (a repeat of the last entry) is not logged again.
 
-use crate::optim::IterationRecord;
+use crate::fit::FitObjective;
+use crate::optim::{minimize, IterationRecord, OptimInfo, OptimParams, Optimizer};
+use crate::problem::{Evaluation, Problem};
 use crate::Error;
+use cutfem::fem::Model;
 use serde_json::{json, Map, Value};
 use std::io::Write;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 /// `{name: value}` of physical parameters (the log's and the reports' `parameters`).
@@ -134,6 +138,76 @@ impl FitLog {
     pub fn into_history(self) -> Vec<Value> {
         self.history
     }
+}
+
+/// What [`run_logged`] gives: the best point, the optimizer's account, the evaluation and the
+/// model there.
+#[derive(Debug)]
+pub struct LoggedFit {
+    /// the best point (unconstrained coordinates)
+    pub x: Vec<f64>,
+    /// the optimizer's account (termination, evaluations)
+    pub info: OptimInfo,
+    /// the evaluation at `x`
+    pub evaluation: Evaluation,
+    /// the model at `x`
+    pub model: Model,
+}
+
+/// Runs `optimizer` on `problem` from `x0` for at most `iterations` iterations, recording every
+/// iteration in `log` (the cost, the rms of the evaluation made at that point, the physical
+/// values) and reporting `(iteration, cost)` to `progress`; then the evaluation at the best
+/// point (the optimizer's own when it made one there). The session of `softbody fit`.
+pub fn run_logged(
+    problem: &mut Problem,
+    optimizer: Optimizer,
+    iterations: usize,
+    x0: &[f64],
+    log: &mut FitLog,
+    mut progress: impl FnMut(usize, f64),
+) -> Result<LoggedFit, Error> {
+    let params = problem.params.clone();
+    let base = problem.base.clone();
+    let model_at = |x: &[f64]| {
+        let mut m = base.clone();
+        params.apply(x, &mut m);
+        m
+    };
+    let mut objective = FitObjective::new(problem);
+    let evaluations = objective.evaluations.clone();
+    let oparams = OptimParams {
+        max_iterations: iterations,
+        ..OptimParams::default()
+    };
+    let mut log_error = None;
+    let result = minimize(optimizer, &mut objective, x0, &oparams, &mut |rec| {
+        let ev = crate::fit::find_evaluation(&evaluations, &rec.x);
+        let values = params.values(&model_at(&rec.x));
+        if let Err(e) = log.record(rec, ev.as_ref().map(Evaluation::rms), &values) {
+            log_error = Some(e);
+            return ControlFlow::Break(());
+        }
+        progress(rec.iteration, rec.cost);
+        ControlFlow::Continue(())
+    });
+    if let Some(e) = log_error {
+        return Err(e);
+    }
+    let (x, info) = result.map_err(|e| Error::Invalid(format!("fit: {e}")))?;
+    let evaluation = match objective.evaluation_at(&x) {
+        Some(e) => e,
+        None => objective
+            .problem
+            .evaluate(&x)
+            .map_err(|e| Error::Invalid(format!("the fitted model: {e}")))?,
+    };
+    let model = objective.problem.model_at(&x);
+    Ok(LoggedFit {
+        x,
+        info,
+        evaluation,
+        model,
+    })
 }
 
 #[cfg(test)]
