@@ -73,6 +73,12 @@ pub fn step_lagrangian(sim: &Simulation, u_next: &Matrix<Vec3<f64>>, lam: &Matri
 /// Adds the derivatives of `L = lam^T (b - A u')` (module docs) to `u_bar`, `v_bar` and `grad`.
 /// `sim` must have been assembled ([`Simulation::assemble_system`]) at the step's start state
 /// `(sim.u, sim.v)`; `u_next` is the state the forward step produced.
+///
+/// The stages of [`Simulation::step`] before the solve (rotations, element blocks, external
+/// force, contact, Newmark `A` and `b`) each add their terms of `L`; the solve and the
+/// velocity update are reversed by the caller ([`crate::problem::Problem::gradient`]: `g`,
+/// `A lam = g`). The sums are independent and are accumulated in this fixed order, so the
+/// result does not depend on the thread count.
 pub fn step_adjoint(
     sim: &Simulation,
     u_next: &Matrix<Vec3<f64>>,
@@ -81,116 +87,179 @@ pub fn step_adjoint(
     v_bar: &mut Matrix<Vec3<f64>>,
     grad: &mut PhysicalGradient,
 ) {
-    let model = &sim.model;
-    let nm = model.newmark();
-    let (dt, theta) = (nm.dt, nm.theta);
-    let (cm, cw, cn) = (nm.cm, nm.cu, nm.ck);
-    let k = sim.stiffness();
-    let m = &sim.mass;
-    let (u, v) = (&sim.u, &sim.v);
+    let st = Stage { sim, u_next, lam };
+    // Newmark A and b: mass, damping, gravity and the external force (vector algebra)
+    st.newmark(u_bar, v_bar, grad);
+    // element blocks and rotations: the elastic terms, cell by cell
+    st.elastic(u_bar, grad);
+    // element blocks: the Nitsche terms of Dirichlet cells
+    st.nitsche(grad);
+    // contact: per edge crossing
+    st.contact(u_bar, v_bar, grad);
+}
 
-    // mass, damping, gravity
-    let k_lam = Matrix::eval(k * lam);
-    u_bar.assign_with(|ub| ub + m.ex().cwise_mul(lam.ex()) * cm + k_lam.ex() * cw);
-    v_bar.assign_with(|vb| vb + m.ex().cwise_mul(lam.ex()) * nm.cv);
-    let m_lam = Matrix::eval(m.ex().cwise_mul(lam.ex()));
-    let lam_m_du = m_lam.ex().dot(u - u_next);
-    let lam_m_v = m_lam.ex().dot(v.ex());
-    let s: Vec3<f64> = m_lam.ex().sum();
-    let lam_m_g = s.dot(model.gravity);
-    grad.density += (cm * lam_m_du + lam_m_v / theta + dt * lam_m_g) / model.density;
-    grad.damping_mass += lam_m_du;
-    grad.damping_stiffness += k_lam.ex().dot(u - u_next);
-    grad.gravity = grad.gravity + s * dt;
-    if let Some(ext) = &model.external_force {
-        grad.external.resize(ext.len(), 0.0);
-        for (gk, field) in grad.external.iter_mut().zip(ext.basis.iter()) {
-            *gk += dt
-                * field
-                    .iter()
-                    .zip(lam.as_slice())
-                    .map(|(f, l)| f.dot(*l))
-                    .sum::<f64>();
+/// What every stage of [`step_adjoint`] reads.
+struct Stage<'a> {
+    sim: &'a Simulation,
+    u_next: &'a Matrix<Vec3<f64>>,
+    lam: &'a Matrix<Vec3<f64>>,
+}
+
+impl Stage<'_> {
+    /// Mass, damping, gravity and the external force (sec. 5.5.3, 5.5.6).
+    fn newmark(
+        &self,
+        u_bar: &mut Matrix<Vec3<f64>>,
+        v_bar: &mut Matrix<Vec3<f64>>,
+        grad: &mut PhysicalGradient,
+    ) {
+        let (sim, u_next, lam) = (self.sim, self.u_next, self.lam);
+        let model = &sim.model;
+        let nm = model.newmark();
+        let (dt, theta) = (nm.dt, nm.theta);
+        let (cm, cw) = (nm.cm, nm.cu);
+        let k = sim.stiffness();
+        let m = &sim.mass;
+        let (u, v) = (&sim.u, &sim.v);
+        let k_lam = Matrix::eval(k * lam);
+        u_bar.assign_with(|ub| ub + m.ex().cwise_mul(lam.ex()) * cm + k_lam.ex() * cw);
+        v_bar.assign_with(|vb| vb + m.ex().cwise_mul(lam.ex()) * nm.cv);
+        let m_lam = Matrix::eval(m.ex().cwise_mul(lam.ex()));
+        let lam_m_du = m_lam.ex().dot(u - u_next);
+        let lam_m_v = m_lam.ex().dot(v.ex());
+        let s: Vec3<f64> = m_lam.ex().sum();
+        let lam_m_g = s.dot(model.gravity);
+        grad.density += (cm * lam_m_du + lam_m_v / theta + dt * lam_m_g) / model.density;
+        grad.damping_mass += lam_m_du;
+        grad.damping_stiffness += k_lam.ex().dot(u - u_next);
+        grad.gravity = grad.gravity + s * dt;
+        if let Some(ext) = &model.external_force {
+            grad.external.resize(ext.len(), 0.0);
+            for (gk, field) in grad.external.iter_mut().zip(ext.basis.iter()) {
+                *gk += dt
+                    * field
+                        .iter()
+                        .zip(lam.as_slice())
+                        .map(|(f, l)| f.dot(*l))
+                        .sum::<f64>();
+            }
         }
     }
 
-    // elastic terms, cell by cell
-    let grid = &sim.grid;
-    let h = grid.h();
-    let x = corner_offsets(h);
-    let blocks = sim.element_blocks().expect("assembled");
-    let rotations = sim.rotations();
-    let scale = model.stiffness_scale.as_deref();
-    let (lame_l, lame_m) = model.lame();
-    let (us, uns, ls) = (u.as_slice(), u_next.as_slice(), lam.as_slice());
-    let per_cell: Vec<([Vec3<f64>; 8], f64, f64, f64)> = grid
-        .cells
-        .par_iter()
-        .enumerate()
-        .map(|(e, c)| {
-            let d = |q: usize| c.dofs[q] as usize;
-            let lam_e: [Vec3<f64>; 8] = std::array::from_fn(|q| ls[d(q)]);
-            let a_e: [Vec3<f64>; 8] = std::array::from_fn(|q| us[d(q)] * cw - uns[d(q)] * cn - x[q] * dt);
-            let r = rotations.map_or(Mat3::identity(), |r| r[e]);
-            // the cell's term is s_e times the homogeneous one (linear in lambda, mu)
+    /// `K(u) w` and the corotation force, through the rotations (eq. 5.5.4) and the Lame
+    /// parameters (5.5.5), with the per-cell stiffness factors.
+    fn elastic(&self, u_bar: &mut Matrix<Vec3<f64>>, grad: &mut PhysicalGradient) {
+        let (sim, u_next, lam) = (self.sim, self.u_next, self.lam);
+        let model = &sim.model;
+        let nm = model.newmark();
+        let (dt, cw, cn) = (nm.dt, nm.cu, nm.ck);
+        let grid = &sim.grid;
+        let h = grid.h();
+        let x = corner_offsets(h);
+        let blocks = sim.element_blocks().expect("assembled");
+        let rotations = sim.rotations();
+        let scale = model.stiffness_scale.as_deref();
+        let (lame_l, lame_m) = model.lame();
+        let (us, uns, ls) = (sim.u.as_slice(), u_next.as_slice(), lam.as_slice());
+        let per_cell: Vec<([Vec3<f64>; 8], f64, f64, f64)> = grid
+            .cells
+            .par_iter()
+            .enumerate()
+            .map(|(e, c)| {
+                let d = |q: usize| c.dofs[q] as usize;
+                let lam_e: [Vec3<f64>; 8] = std::array::from_fn(|q| ls[d(q)]);
+                let a_e: [Vec3<f64>; 8] = std::array::from_fn(|q| us[d(q)] * cw - uns[d(q)] * cn - x[q] * dt);
+                let r = rotations.map_or(Mat3::identity(), |r| r[e]);
+                // the cell's term is s_e times the homogeneous one (linear in lambda, mu)
+                let se = scale.map_or(1.0, |s| s[e]);
+                let set = blocks.set(e);
+                let (r_bar, dl, dm) = cell_elastic_adjoint(set, &r, &lam_e, &a_e, &x, dt);
+                let mut ub = [Vec3::default(); 8];
+                if rotations.is_some() {
+                    let u_e: [Vec3<f64>; 8] = std::array::from_fn(|q| us[d(q)]);
+                    let w = set.gradient_weights();
+                    let f = deformation_gradient_with(&u_e, w, h);
+                    let f_bar = polar_rotation_adjoint(f, POLAR_ITERATIONS, r_bar * se);
+                    deformation_gradient_adjoint(&f_bar, w, h, &mut ub);
+                }
+                (ub, dl, dm, se)
+            })
+            .collect();
+        if grad.cell_scale.len() != grid.cells.len() {
+            grad.cell_scale = vec![0.0; grid.cells.len()];
+        }
+        for (e, (_, dl, dm, se)) in per_cell.iter().enumerate() {
+            grad.lambda += se * dl;
+            grad.mu += se * dm;
+            grad.cell_scale[e] += lame_l * dl + lame_m * dm;
+        }
+        if rotations.is_some() {
+            let ubs = u_bar.as_mut_slice();
+            ubs.par_iter_mut().enumerate().for_each(|(dof, out)| {
+                for &(e, q) in sim.assembler.cells_of(dof) {
+                    *out = *out + per_cell[e as usize].0[q as usize];
+                }
+            });
+        }
+    }
+
+    /// The Nitsche terms: linear in `(lambda, mu, eta)`, independent of `u`; a scaled penalty
+    /// is `eta = p (lambda + 2 mu) se` (`NitschePenalty::terms`), so d/dlambda carries `p` and
+    /// d/dmu `2 p`; a fixed one does not depend on them.
+    fn nitsche(&self, grad: &mut PhysicalGradient) {
+        let (sim, u_next, lam) = (self.sim, self.u_next, self.lam);
+        let model = &sim.model;
+        let nm = model.newmark();
+        let (cw, cn) = (nm.cu, nm.ck);
+        let grid = &sim.grid;
+        let scale = model.stiffness_scale.as_deref();
+        let (lame_l, lame_m) = model.lame();
+        let (us, uns, ls) = (sim.u.as_slice(), u_next.as_slice(), lam.as_slice());
+        if grad.cell_scale.len() != grid.cells.len() {
+            grad.cell_scale = vec![0.0; grid.cells.len()];
+        }
+        let w_at = |q: usize| us[q] * cw - uns[q] * cn;
+        let p = model.nitsche.terms(grid.h()).1;
+        for (e, c) in grid.cells.iter().enumerate() {
+            let Some(ci) = &sim.dirichlet[e] else {
+                continue;
+            };
             let se = scale.map_or(1.0, |s| s[e]);
-            let set = blocks.set(e);
-            let (r_bar, dl, dm) = cell_elastic_adjoint(set, &r, &lam_e, &a_e, &x, dt);
-            let mut ub = [Vec3::default(); 8];
-            if rotations.is_some() {
-                let u_e: [Vec3<f64>; 8] = std::array::from_fn(|q| us[d(q)]);
-                let w = set.gradient_weights();
-                let f = deformation_gradient_with(&u_e, w, h);
-                let f_bar = polar_rotation_adjoint(f, POLAR_ITERATIONS, r_bar * se);
-                deformation_gradient_adjoint(&f_bar, w, h, &mut ub);
-            }
-            (ub, dl, dm, se)
-        })
-        .collect();
-    if grad.cell_scale.len() != grid.cells.len() {
-        grad.cell_scale = vec![0.0; grid.cells.len()];
-    }
-    for (e, (_, dl, dm, se)) in per_cell.iter().enumerate() {
-        grad.lambda += se * dl;
-        grad.mu += se * dm;
-        grad.cell_scale[e] += lame_l * dl + lame_m * dm;
-    }
-    if rotations.is_some() {
-        let ubs = u_bar.as_mut_slice();
-        ubs.par_iter_mut().enumerate().for_each(|(dof, out)| {
-            for &(e, q) in sim.assembler.cells_of(dof) {
-                *out = *out + per_cell[e as usize].0[q as usize];
-            }
-        });
-    }
-
-    // Nitsche terms: linear in (lambda, mu, eta), independent of u; a scaled penalty is
-    // `eta = p (lambda + 2 mu) se` (`NitschePenalty::terms`), so d/dlambda carries `p` and
-    // d/dmu `2 p`; a fixed one does not depend on them
-    let w_at = |q: usize| us[q] * cw - uns[q] * cn;
-    let p = model.nitsche.terms(grid.h()).1;
-    for (e, c) in grid.cells.iter().enumerate() {
-        let Some(ci) = &sim.dirichlet[e] else {
-            continue;
-        };
-        let se = scale.map_or(1.0, |s| s[e]);
-        for i in 0..8 {
-            let li = ls[c.dofs[i] as usize];
-            for j in 0..8 {
-                let wj = w_at(c.dofs[j] as usize);
-                let pe = p * ci.penalty_factor;
-                let nl = li.dot(ci.block(i, j, 1.0, 0.0, pe) * wj);
-                let nm = li.dot(ci.block(i, j, 0.0, 1.0, 2.0 * pe) * wj);
-                grad.lambda += se * nl;
-                grad.mu += se * nm;
-                grad.cell_scale[e] += lame_l * nl + lame_m * nm;
+            for i in 0..8 {
+                let li = ls[c.dofs[i] as usize];
+                for j in 0..8 {
+                    let wj = w_at(c.dofs[j] as usize);
+                    let pe = p * ci.penalty_factor;
+                    let nl = li.dot(ci.block(i, j, 1.0, 0.0, pe) * wj);
+                    let nm = li.dot(ci.block(i, j, 0.0, 1.0, 2.0 * pe) * wj);
+                    grad.lambda += se * nl;
+                    grad.mu += se * nm;
+                    grad.cell_scale[e] += lame_l * nl + lame_m * nm;
+                }
             }
         }
     }
 
-    // contact
-    if let Some(g) = &model.ground {
-        let vs = v.as_slice();
+    /// Contact (Alg. 5.5, sec. 5.5.5): per crossing ([`contact_adjoint`]).
+    fn contact(
+        &self,
+        u_bar: &mut Matrix<Vec3<f64>>,
+        v_bar: &mut Matrix<Vec3<f64>>,
+        grad: &mut PhysicalGradient,
+    ) {
+        let (sim, u_next, lam) = (self.sim, self.u_next, self.lam);
+        let Some(g) = &sim.model.ground else {
+            return;
+        };
+        let nm = sim.model.newmark();
+        let (dt, theta) = (nm.dt, nm.theta);
+        let grid = &sim.grid;
+        let (us, uns, vs, ls) = (
+            sim.u.as_slice(),
+            u_next.as_slice(),
+            sim.v.as_slice(),
+            lam.as_slice(),
+        );
         let ubs = u_bar.as_mut_slice();
         let vbs = v_bar.as_mut_slice();
         for c in &sim.crossings {
