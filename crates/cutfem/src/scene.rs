@@ -113,18 +113,7 @@ pub struct GroundSection {
     pub softness: f64,
     /// time discretization of the contact force: "implicit" (default) or "thesis"
     #[serde(default)]
-    pub scheme: ContactSchemeName,
-}
-
-/// `[ground].scheme`
-#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-pub enum ContactSchemeName {
-    /// linearized implicit contact (stable for stiff springs)
-    #[default]
-    Implicit,
-    /// the thesis' explicit prediction
-    Thesis,
+    pub scheme: crate::fem::collision::ContactScheme,
 }
 fn up() -> [f64; 3] {
     [0.0, 1.0, 0.0]
@@ -397,10 +386,7 @@ impl Scene {
                 height: if len > 0.0 { g.height / len } else { g.height },
                 stiffness: g.stiffness,
                 softness: g.softness,
-                scheme: match g.scheme {
-                    ContactSchemeName::Implicit => crate::fem::collision::ContactScheme::Implicit,
-                    ContactSchemeName::Thesis => crate::fem::collision::ContactScheme::Thesis,
-                },
+                scheme: g.scheme,
             });
         }
         if let (true, Some(i)) = (self.effect_on("initial_velocity"), &self.initial) {

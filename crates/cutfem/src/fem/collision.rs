@@ -27,8 +27,10 @@ use super::grid::Grid;
 use gpumat::{Matrix, Vec3};
 use std::collections::BTreeSet;
 
-/// How the contact force is discretized in time (see the module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+/// How the contact force is discretized in time (see the module docs); `[ground].scheme` of a
+/// scene, in lower case.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum ContactScheme {
     /// linearized, implicit in the new displacement
     #[default]
