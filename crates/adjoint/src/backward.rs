@@ -27,7 +27,7 @@ use crate::local::{
     cell_elastic_adjoint, contact_adjoint, deformation_gradient_adjoint, polar_rotation_adjoint,
 };
 use cutfem::fem::element::{corner_offsets, deformation_gradient_with, POLAR_ITERATIONS};
-use cutfem::fem::Simulation;
+use cutfem::fem::{NewmarkCoefficients, Simulation};
 use gpumat::{Mat3, Matrix, Vec3};
 use rayon::prelude::*;
 
@@ -87,7 +87,17 @@ pub fn step_adjoint(
     v_bar: &mut Matrix<Vec3<f64>>,
     grad: &mut PhysicalGradient,
 ) {
-    let st = Stage { sim, u_next, lam };
+    let st = Stage {
+        sim,
+        nm: sim.model.newmark(),
+        u_next,
+        lam,
+        us: sim.u.as_slice(),
+        uns: u_next.as_slice(),
+        ls: lam.as_slice(),
+        scale: sim.model.stiffness_scale.as_deref(),
+        lame: sim.model.lame(),
+    };
     // Newmark A and b: mass, damping, gravity and the external force (vector algebra)
     st.newmark(u_bar, v_bar, grad);
     // element blocks and rotations: the elastic terms, cell by cell
@@ -101,8 +111,18 @@ pub fn step_adjoint(
 /// What every stage of [`step_adjoint`] reads.
 struct Stage<'a> {
     sim: &'a Simulation,
+    /// the model's Newmark coefficients
+    nm: NewmarkCoefficients,
     u_next: &'a Matrix<Vec3<f64>>,
     lam: &'a Matrix<Vec3<f64>>,
+    /// `u`, `u'` and `lam` per degree of freedom
+    us: &'a [Vec3<f64>],
+    uns: &'a [Vec3<f64>],
+    ls: &'a [Vec3<f64>],
+    /// the per-cell stiffness factors, if any
+    scale: Option<&'a [f64]>,
+    /// `(lambda, mu)`
+    lame: (f64, f64),
 }
 
 impl Stage<'_> {
@@ -113,9 +133,8 @@ impl Stage<'_> {
         v_bar: &mut Matrix<Vec3<f64>>,
         grad: &mut PhysicalGradient,
     ) {
-        let (sim, u_next, lam) = (self.sim, self.u_next, self.lam);
+        let (sim, u_next, lam, nm) = (self.sim, self.u_next, self.lam, self.nm);
         let model = &sim.model;
-        let nm = model.newmark();
         let (dt, theta) = (nm.dt, nm.theta);
         let (cm, cw) = (nm.cm, nm.cu);
         let k = sim.stiffness();
@@ -149,18 +168,14 @@ impl Stage<'_> {
     /// `K(u) w` and the corotation force, through the rotations (eq. 5.5.4) and the Lame
     /// parameters (5.5.5), with the per-cell stiffness factors.
     fn elastic(&self, u_bar: &mut Matrix<Vec3<f64>>, grad: &mut PhysicalGradient) {
-        let (sim, u_next, lam) = (self.sim, self.u_next, self.lam);
-        let model = &sim.model;
-        let nm = model.newmark();
+        let (sim, nm, scale, (lame_l, lame_m)) = (self.sim, self.nm, self.scale, self.lame);
         let (dt, cw, cn) = (nm.dt, nm.cu, nm.ck);
         let grid = &sim.grid;
         let h = grid.h();
         let x = corner_offsets(h);
         let blocks = sim.element_blocks().expect("assembled");
         let rotations = sim.rotations();
-        let scale = model.stiffness_scale.as_deref();
-        let (lame_l, lame_m) = model.lame();
-        let (us, uns, ls) = (sim.u.as_slice(), u_next.as_slice(), lam.as_slice());
+        let (us, uns, ls) = (self.us, self.uns, self.ls);
         let per_cell: Vec<([Vec3<f64>; 8], f64, f64, f64)> = grid
             .cells
             .par_iter()
@@ -207,19 +222,15 @@ impl Stage<'_> {
     /// is `eta = p (lambda + 2 mu) se` (`NitschePenalty::terms`), so d/dlambda carries `p` and
     /// d/dmu `2 p`; a fixed one does not depend on them.
     fn nitsche(&self, grad: &mut PhysicalGradient) {
-        let (sim, u_next, lam) = (self.sim, self.u_next, self.lam);
-        let model = &sim.model;
-        let nm = model.newmark();
+        let (sim, nm, scale, (lame_l, lame_m)) = (self.sim, self.nm, self.scale, self.lame);
         let (cw, cn) = (nm.cu, nm.ck);
         let grid = &sim.grid;
-        let scale = model.stiffness_scale.as_deref();
-        let (lame_l, lame_m) = model.lame();
-        let (us, uns, ls) = (sim.u.as_slice(), u_next.as_slice(), lam.as_slice());
+        let (us, uns, ls) = (self.us, self.uns, self.ls);
         if grad.cell_scale.len() != grid.cells.len() {
             grad.cell_scale = vec![0.0; grid.cells.len()];
         }
         let w_at = |q: usize| us[q] * cw - uns[q] * cn;
-        let p = model.nitsche.terms(grid.h()).1;
+        let p = sim.model.nitsche.terms(grid.h()).1;
         for (e, c) in grid.cells.iter().enumerate() {
             let Some(ci) = &sim.dirichlet[e] else {
                 continue;
@@ -247,19 +258,13 @@ impl Stage<'_> {
         v_bar: &mut Matrix<Vec3<f64>>,
         grad: &mut PhysicalGradient,
     ) {
-        let (sim, u_next, lam) = (self.sim, self.u_next, self.lam);
+        let sim = self.sim;
         let Some(g) = &sim.model.ground else {
             return;
         };
-        let nm = sim.model.newmark();
-        let (dt, theta) = (nm.dt, nm.theta);
+        let (dt, theta) = (self.nm.dt, self.nm.theta);
         let grid = &sim.grid;
-        let (us, uns, vs, ls) = (
-            sim.u.as_slice(),
-            u_next.as_slice(),
-            sim.v.as_slice(),
-            lam.as_slice(),
-        );
+        let (us, uns, vs, ls) = (self.us, self.uns, sim.v.as_slice(), self.ls);
         let ubs = u_bar.as_mut_slice();
         let vbs = v_bar.as_mut_slice();
         for c in &sim.crossings {

@@ -9,17 +9,11 @@
 use std::path::PathBuf;
 use thiserror::Error;
 
-/// Errors of adjoint.
+/// Errors of adjoint. A file that cannot be read or written, or whose content is wrong as a
+/// whole, is cutfem's [`cutfem::Error::Io`] / [`cutfem::Error::Format`] (one home for file
+/// errors, [`Error::io`] and [`Error::format`] build them).
 #[derive(Debug, Error)]
 pub enum Error {
-    /// A file could not be read or written.
-    #[error("{}: {source}", path.display())]
-    Io {
-        /// the file
-        path: PathBuf,
-        /// the cause
-        source: std::io::Error,
-    },
     /// A line of a data file could not be parsed.
     #[error("{}: line {line}: {msg}", path.display())]
     Parse {
@@ -41,15 +35,6 @@ pub enum Error {
         /// what is wrong
         msg: String,
     },
-    /// A file's content is wrong as a whole (a JSON document, a scene that cannot be built, a
-    /// log that belongs to another run); the message names the key when it can.
-    #[error("{}: {msg}", path.display())]
-    Format {
-        /// the file
-        path: PathBuf,
-        /// what is wrong
-        msg: String,
-    },
     /// An argument, option or parameter choice is invalid (the message names the key).
     #[error("{0}")]
     Invalid(String),
@@ -64,9 +49,9 @@ pub enum Error {
         /// the cause
         source: cutfem::Error,
     },
-    /// Building or running the model failed (scene, grid, solver).
+    /// Reading a file, building or running the model failed (scene, grid, solver).
     #[error(transparent)]
-    Model(#[from] cutfem::Error),
+    Cutfem(#[from] cutfem::Error),
     /// An optimizer could not start (the objective failed at the starting point).
     #[error(transparent)]
     Optim(#[from] crate::optim::OptimError),
@@ -82,17 +67,13 @@ impl Error {
     }
     /// An I/O error for `path`.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io {
-            path: path.into(),
-            source,
-        }
+        Error::Cutfem(cutfem::Error::io(path, source))
     }
-    /// A whole-file format error for `path`.
+    /// A whole-file format error for `path`: its content is wrong as a whole (a JSON
+    /// document, a scene that cannot be built, a log that belongs to another run); the message
+    /// names the key when it can.
     pub fn format(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
-        Error::Format {
-            path: path.into(),
-            msg: msg.into(),
-        }
+        Error::Cutfem(cutfem::Error::format(path, msg))
     }
     /// A failed simulation step at `at`.
     pub fn step(at: impl Into<String>, source: cutfem::Error) -> Self {

@@ -194,11 +194,8 @@ impl Observations {
     /// Reads a CSV file (see the module docs for the format).
     pub fn read_csv(path: impl AsRef<Path>) -> Result<Self, Error> {
         let path = path.as_ref();
-        let bytes =
-            cutfem::input::read_text(path, cutfem::input::MAX_DATA_BYTES).map_err(|source| Error::Io {
-                path: path.to_path_buf(),
-                source,
-            })?;
+        let bytes = cutfem::input::read_text(path, cutfem::input::MAX_DATA_BYTES)
+            .map_err(|source| Error::io(path, source))?;
         let text = String::from_utf8(bytes).map_err(|e| {
             let line = e.as_bytes()[..e.utf8_error().valid_up_to()]
                 .iter()
@@ -269,10 +266,7 @@ impl Observations {
     /// Writes the set as a CSV file.
     pub fn write_csv(&self, path: impl AsRef<Path>) -> Result<(), Error> {
         let path = path.as_ref();
-        std::fs::write(path, self.to_csv()).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+        std::fs::write(path, self.to_csv()).map_err(|source| Error::io(path, source))
     }
 }
 
