@@ -1,7 +1,9 @@
-//! Shaded pictures of meshes: vertices projected by the [`Camera`], triangles drawn by the
-//! one z-buffer ([`super::raster::rasterize`]), colours and normals interpolated with its
+//! Shaded pictures of meshes: vertices projected by the [`Camera`] (beyond the pictures' near
+//! plane, 1e-3 of the eye-target distance), triangles drawn by the one z-buffer
+//! ([`super::raster::rasterize`]), colours and normals interpolated with its
 //! perspective-correct weights, two-sided Lambert shading from the camera's headlight plus
-//! ambient light, an optional checkerboard ground, supersampling.
+//! ambient light, an optional checkerboard ground (seen through each pixel's
+//! [`ray`](super::CameraFrame::ray)), supersampling.
 
 use super::raster::{rasterize, ScreenVertex};
 use super::{cross, dot, normalize, sub, viridis, Camera, Coloring, Image, RenderItem, RenderOptions};
@@ -100,6 +102,7 @@ pub fn render_with_depth(
     let s = options.supersample.clamp(1, 8);
     let (w, h) = (width * s, height * s);
     let fr = camera.frame(w, h);
+    let near = camera.picture_near();
     let bg = options.background.map(|c| c as f64 / 255.0);
     let mut color = vec![bg; w * h];
     let mut depth = vec![f64::INFINITY; w * h];
@@ -118,7 +121,7 @@ pub fn render_with_depth(
         let proj: Vec<ScreenVertex> = mesh
             .vertices
             .iter()
-            .map(|&p| fr.project(p).map(|q| ([q[0], q[1]], q[2])))
+            .map(|&p| fr.project_beyond(p, near).map(|q| ([q[0], q[1]], q[2])))
             .collect();
         let face_normal = |f: [usize; 3]| {
             let [a, b, c] = f.map(|i| mesh.vertices[i]);
@@ -149,7 +152,7 @@ pub fn render_with_depth(
                 // dir has unit depth, so the ray parameter is the depth
                 let t = (g.height - fr.eye[1]) / dir[1];
                 let pix = x + w * y;
-                if t <= fr.near || t >= depth[pix] {
+                if t <= near || t >= depth[pix] {
                     continue;
                 }
                 let q = [0, 1, 2].map(|d| fr.eye[d] + t * dir[d]);
