@@ -14,8 +14,8 @@
 //! list) is a non-negative integer, each id once, and the ids are `0..N` for `N` cameras (the id
 //! indexes the camera). The intrinsics are optional for a fit (it needs only the eyes, for the
 //! viewing rays) and required for `diagnose`'s pictures; where given they are checked:
-//! `target` and `up` finite 3-vectors, `target` not the eye, `fov_y` in `(0, pi)` radians,
-//! `width` and `height` integers in `1..=`[`MAX_CAMERA_PIXELS`].
+//! `target` and `up` finite 3-vectors, `target` not the eye, `fov_y` in `(0, pi)` radians
+//! ([`Camera::is_valid_fov_y`]), `width` and `height` integers in `1..=`[`MAX_CAMERA_PIXELS`].
 //!
 //! [`CameraFile::check_used`] then checks the file against the CSV: every camera id a point
 //! names must be in the file (a point whose camera is unknown would silently be measured to the
@@ -23,8 +23,9 @@
 //! (`cameras[i]`, its id) and the key.
 
 use crate::observations::Observations;
-use crate::observe::Camera;
+use crate::observe::DepthCamera;
 use crate::Error;
+use cutfem::render::Camera;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -132,7 +133,7 @@ impl CameraFile {
             let fov_y = match &c["fov_y"] {
                 Value::Null => None,
                 v => match v.as_f64() {
-                    Some(f) if f > 0.0 && f < std::f64::consts::PI => Some(f),
+                    Some(f) if Camera::is_valid_fov_y(f) => Some(f),
                     _ => {
                         return Err(bad(format!(
                             "{}: must be an angle in (0, pi) radians, found {} {cam}",
@@ -173,14 +174,15 @@ impl CameraFile {
     /// The text of the camera file of `cameras` (ids = positions), with the depth noise and
     /// seed they observed with: what `softbody observe` writes beside its CSV and
     /// [`CameraFile::parse`] reads back.
-    pub fn text(cameras: &[Camera], noise: f64, seed: u64) -> String {
+    pub fn text(cameras: &[DepthCamera], noise: f64, seed: u64) -> String {
         let cams: Vec<Value> = cameras
             .iter()
             .enumerate()
-            .map(|(i, c)| {
+            .map(|(i, d)| {
+                let c = &d.camera;
                 serde_json::json!({
                     "id": i, "eye": c.eye, "target": c.target, "up": c.up, "fov_y": c.fov_y,
-                    "width": c.width, "height": c.height,
+                    "width": d.width, "height": d.height,
                 })
             })
             .collect();
@@ -196,11 +198,11 @@ impl CameraFile {
 
     /// The cameras with their intrinsics, indexed by id; errors naming the camera and key when
     /// one lacks `target`, `fov_y`, `width` or `height` (`up` defaults to +y).
-    pub fn cameras(&self) -> Result<Vec<Camera>, Error> {
+    pub fn cameras(&self) -> Result<Vec<DepthCamera>, Error> {
         self.cameras
             .iter()
             .enumerate()
-            .map(|(id, c)| -> Result<Camera, Error> {
+            .map(|(id, c)| -> Result<DepthCamera, Error> {
                 let missing = |key: &str| {
                     Error::format(
                         &self.path,
@@ -209,11 +211,13 @@ impl CameraFile {
                         ),
                     )
                 };
-                Ok(Camera {
-                    eye: c.eye,
-                    target: c.target.ok_or_else(|| missing("target"))?,
-                    up: c.up.unwrap_or([0.0, 1.0, 0.0]),
-                    fov_y: c.fov_y.ok_or_else(|| missing("fov_y"))?,
+                Ok(DepthCamera {
+                    camera: Camera {
+                        eye: c.eye,
+                        target: c.target.ok_or_else(|| missing("target"))?,
+                        up: c.up.unwrap_or([0.0, 1.0, 0.0]),
+                        fov_y: c.fov_y.ok_or_else(|| missing("fov_y"))?,
+                    },
                     width: c.width.ok_or_else(|| missing("width"))?,
                     height: c.height.ok_or_else(|| missing("height"))?,
                 })

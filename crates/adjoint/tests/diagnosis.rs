@@ -9,7 +9,7 @@
 use adjoint::cost::Robust;
 use adjoint::diagnosis::{add_and_refit, diagnose, DiagnoseParams, Diagnosis, Refined, Setup};
 use adjoint::observations::Observations;
-use adjoint::observe::{synthesize, Camera, RigParams};
+use adjoint::observe::{synthesize, DepthCamera, RigParams};
 use adjoint::params::ParamSet;
 use cutfem::fem::{Grid, Model};
 use cutfem::scene::Scene;
@@ -53,7 +53,7 @@ fn bunny() -> String {
 struct Case {
     shape: &'static str,
     obs: Observations,
-    cams: Vec<Camera>,
+    cams: Vec<DepthCamera>,
     eyes: Vec<[f64; 3]>,
 }
 
@@ -71,7 +71,7 @@ impl Case {
         };
         let sigma = if bunny { sigma * BUNNY_SCALE } else { sigma };
         let (obs, cams) = synthesize(truth, &rig, sigma, truth.time.steps, edit).expect("observations");
-        let eyes = cams.iter().map(|c| c.eye).collect();
+        let eyes = cams.iter().map(|c| c.camera.eye).collect();
         let shape = if bunny { "bunny" } else { "torus" };
         Case {
             shape,

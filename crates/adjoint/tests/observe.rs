@@ -3,7 +3,7 @@
 //! is reproducible from the seed.
 
 use adjoint::observations::Observations;
-use adjoint::observe::{observe_mesh, place_cameras, record, render_depth, Camera, RigParams};
+use adjoint::observe::{observe_mesh, place_cameras, record, render_depth, DepthCamera, RigParams};
 use cutfem::mesh::distance::closest_point_on_triangle;
 use cutfem::shapes::Shape;
 use cutfem::surface::extract_surface;
@@ -60,7 +60,7 @@ const FOV: f64 = PI / 4.0;
 #[test]
 fn a_cube_seen_head_on_shows_exactly_its_front_face() {
     let mesh = cube(0.5);
-    let cam = Camera::look_at([0.0, 0.0, 3.0], [0.0; 3], FOV, 64, 64);
+    let cam = DepthCamera::look_at([0.0, 0.0, 3.0], [0.0; 3], FOV, 64, 64);
     let pts = &observe_mesh(&mesh, &[cam], 0.0, 0, 0)[0];
     for p in pts {
         assert!((p[2] - 0.5).abs() < 1e-12, "not on the front face: {p:?}");
@@ -82,7 +82,7 @@ fn a_cube_seen_head_on_shows_exactly_its_front_face() {
 fn an_oblique_cube_shows_three_faces_and_nothing_behind() {
     let mesh = cube(0.5);
     let eye = [2.0, 1.5, 2.5];
-    let cam = Camera::look_at(eye, [0.0; 3], FOV, 48, 48);
+    let cam = DepthCamera::look_at(eye, [0.0; 3], FOV, 48, 48);
     let pts = &observe_mesh(&mesh, &[cam], 0.0, 0, 0)[0];
     let shape = Shape::Box {
         center: [0.0; 3],
@@ -106,7 +106,7 @@ fn sphere_points_are_on_the_mesh_on_the_near_side_and_fill_the_disc() {
     let mesh = sphere(c, r);
     let d = 3.0;
     let eye = [0.0, 1.0 + d * 0.5, d * 0.75f64.sqrt()];
-    let cam = Camera::look_at(eye, c, FOV, 64, 64);
+    let cam = DepthCamera::look_at(eye, c, FOV, 64, 64);
     let pts = &observe_mesh(&mesh, &[cam], 0.0, 0, 0)[0];
     for p in pts {
         assert!(mesh_distance(&mesh, *p) < 1e-9, "{p:?} off the mesh");
@@ -144,13 +144,13 @@ fn a_tiled_plane_filling_the_view_covers_every_pixel_once() {
         }
     }
     let mesh = TriMesh { vertices, faces };
-    let cam = Camera::look_at([0.1, 0.2, 3.0], [0.1, 0.2, 0.0], FOV, 37, 37);
+    let cam = DepthCamera::look_at([0.1, 0.2, 3.0], [0.1, 0.2, 0.0], FOV, 37, 37);
     let img = render_depth(&mesh, &cam);
     assert_eq!(img.hits(), 37 * 37);
     // the plane is perpendicular to the view: constant depth
     assert!(img.depth.iter().all(|&z| (z - 3.0).abs() < 1e-12));
     // a camera facing away sees nothing
-    let away = Camera::look_at([0.0, 0.0, 3.0], [0.0, 0.0, 6.0], FOV, 16, 16);
+    let away = DepthCamera::look_at([0.0, 0.0, 3.0], [0.0, 0.0, 6.0], FOV, 16, 16);
     assert_eq!(render_depth(&mesh, &away).hits(), 0);
 }
 
@@ -217,7 +217,7 @@ fn the_seed_decides_cameras_and_noise() {
         },
     );
     assert!(
-        a.iter().zip(&b).all(|(x, y)| x.eye != y.eye),
+        a.iter().zip(&b).all(|(x, y)| x.camera.eye != y.camera.eye),
         "other seed, other cameras"
     );
     // the recorded set keeps the camera index and round-trips through CSV text
@@ -240,7 +240,7 @@ fn cameras_sit_on_the_sphere_within_the_angle_ranges() {
     let cams = place_cameras(target, &rig);
     let (mut mean_theta, mut mean_cos_phi) = (0.0, 0.0);
     for cam in &cams {
-        let d = sub(cam.eye, target);
+        let d = sub(cam.camera.eye, target);
         assert!((norm(d) - 2.5).abs() < 1e-12);
         let theta = (d[1] / 2.5).acos();
         assert!(
@@ -250,7 +250,7 @@ fn cameras_sit_on_the_sphere_within_the_angle_ranges() {
         let phi = d[2].atan2(d[0]).rem_euclid(TAU);
         mean_theta += theta / cams.len() as f64;
         mean_cos_phi += phi.cos() / cams.len() as f64;
-        assert_eq!(cam.target, target);
+        assert_eq!(cam.camera.target, target);
         assert_eq!((cam.width, cam.height), (32, 32));
     }
     assert!((mean_theta - PI / 3.0).abs() < 0.02, "{mean_theta}");

@@ -213,7 +213,7 @@ fn rig(radius: f64) -> RigParams {
 /// the cameras.
 fn observe(scene: &Scene, steps: usize, radius: f64) -> Result<(Observations, Vec<[f64; 3]>), String> {
     let (obs, cameras) = synthesize(scene, &rig(radius), 0.0, steps, |_, _| {})?;
-    Ok((obs, cameras.iter().map(|c| c.eye).collect()))
+    Ok((obs, cameras.iter().map(|c| c.camera.eye).collect()))
 }
 
 /// The problem of a scene for `steps` steps with its observations, and the perturbed start.
@@ -405,7 +405,7 @@ pub fn memory_child(csv: &Path, steps: usize) -> Result<(), String> {
         .and_then(|g| g.surface())
         .map_err(|e| e.to_string())?;
     let (_, cameras) = rig_around(&surface.mesh, &rig(BODIES[2].radius))?;
-    let eyes: Vec<[f64; 3]> = cameras.iter().map(|c| c.eye).collect();
+    let eyes: Vec<[f64; 3]> = cameras.iter().map(|c| c.camera.eye).collect();
     let (mut p, x) = problem(&scene, &obs, &eyes, steps)?;
     drop(obs);
     let dofs = p.sim.grid.dofs();

@@ -53,7 +53,7 @@ fn diagnose_row() -> Result<Row, String> {
     };
     progress("D: observing the swinging torus");
     let (obs, cams) = synthesize(&truth, &rig, 0.002, truth.time.steps, |_, _| {})?;
-    let eyes: Vec<[f64; 3]> = cams.iter().map(|c| c.eye).collect();
+    let eyes: Vec<[f64; 3]> = cams.iter().map(|c| c.camera.eye).collect();
     let setup = Setup {
         observations: &obs,
         eyes: &eyes,

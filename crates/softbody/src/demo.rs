@@ -105,10 +105,10 @@ pub fn run(a: Args) -> Result<(), String> {
     let (obs, cameras) = synthesize(&truth, &rig, NOISE, truth.time.steps, |_, _| {})?;
     let obs_path = out.join("observations.csv");
     obs.write_csv(&obs_path).map_err(|e| e.to_string())?;
-    let eyes: Vec<[f64; 3]> = cameras.iter().map(|c| c.eye).collect();
+    let eyes: Vec<[f64; 3]> = cameras.iter().map(|c| c.camera.eye).collect();
     let cams_json = json!({"cameras": cameras.iter().enumerate().map(|(i, c)| json!({
-        "id": i, "eye": c.eye, "target": c.target, "up": c.up, "fov_y": c.fov_y,
-        "width": c.width, "height": c.height})).collect::<Vec<_>>(), "noise": NOISE, "seed": rig.seed});
+        "id": i, "eye": c.camera.eye, "target": c.camera.target, "up": c.camera.up,
+        "fov_y": c.camera.fov_y, "width": c.width, "height": c.height})).collect::<Vec<_>>(), "noise": NOISE, "seed": rig.seed});
     let cams_path = adjoint::fit::cameras_path(&obs_path);
     std::fs::write(
         &cams_path,

@@ -13,7 +13,7 @@ use adjoint::diagnosis::history::{self, Entry};
 use adjoint::diagnosis::{diagnose, DiagnoseParams, Diagnosis, Setup};
 use adjoint::fit::CostKind;
 use adjoint::observations::Observations;
-use adjoint::observe::Camera;
+use adjoint::observe::DepthCamera;
 use adjoint::params::ParamSet;
 use cutfem::scene::Scene;
 use serde_json::{json, Value};
@@ -54,7 +54,7 @@ pub struct Job<'a> {
     /// camera eyes
     pub eyes: &'a [[f64; 3]],
     /// cameras with intrinsics
-    pub cameras: &'a [Camera],
+    pub cameras: &'a [DepthCamera],
     /// fitted parameters of the model as given
     pub params: ParamSet,
     /// settings

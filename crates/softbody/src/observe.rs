@@ -13,7 +13,7 @@
 
 use crate::progress;
 use crate::simulate::default_out;
-use adjoint::observe::{observe_run, render_depth, Camera, RigParams};
+use adjoint::observe::{observe_run, render_depth, DepthCamera, RigParams};
 use cutfem::render::{viridis, Image};
 use cutfem::scene::Scene;
 use cutfem::TriMesh;
@@ -107,7 +107,7 @@ fn parse_frames(s: &str, steps: usize) -> Result<Vec<usize>, String> {
 
 /// The depth images of all cameras side by side (viridis, near = dark), each at least
 /// 128 pixels wide.
-fn preview(mesh: &TriMesh, cameras: &[Camera], frame: usize) -> Image {
+fn preview(mesh: &TriMesh, cameras: &[DepthCamera], frame: usize) -> Image {
     let tiles: Vec<Image> = cameras
         .iter()
         .enumerate()
@@ -239,7 +239,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let poses: Vec<_> = cameras
         .iter()
         .zip(rig.angles())
-        .map(|(c, [theta, phi])| json!({"eye": c.eye, "target": c.target, "theta": theta, "phi": phi}))
+        .map(|(c, [theta, phi])| json!({"eye": c.camera.eye, "target": c.camera.target, "theta": theta, "phi": phi}))
         .collect();
     let min = per_frame.iter().copied().min().unwrap_or(0);
     let max = per_frame.iter().copied().max().unwrap_or(0);

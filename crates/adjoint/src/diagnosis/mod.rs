@@ -45,7 +45,7 @@ pub struct Setup<'a> {
     /// camera eyes (index = camera id; empty when unknown)
     pub eyes: &'a [[f64; 3]],
     /// the cameras with their intrinsics (index = camera id; empty when unknown)
-    pub cameras: &'a [crate::observe::Camera],
+    pub cameras: &'a [crate::observe::DepthCamera],
     /// the loss
     pub robust: Robust,
     /// simulated steps (default: the scene's)

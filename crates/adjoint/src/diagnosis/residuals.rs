@@ -26,7 +26,7 @@
 
 use crate::cost_mesh::SurfaceCost;
 use crate::observations::Observations;
-use crate::observe::Camera;
+use crate::observe::DepthCamera;
 use crate::Error;
 use cutfem::fem::{Model, Simulation};
 use gpumat::{Matrix, Vec3};
@@ -319,7 +319,12 @@ const NEIGHBOURS: usize = 12;
 /// The model-free noise floor of `observations` (module docs): `cameras[c]` is camera `c`
 /// when its intrinsics are known, else `eyes[c]` its eye when known; `spacing` sizes the
 /// neighbour search of the plane fits.
-pub fn noise_floor(observations: &Observations, cameras: &[Camera], eyes: &[[f64; 3]], spacing: f64) -> f64 {
+pub fn noise_floor(
+    observations: &Observations,
+    cameras: &[DepthCamera],
+    eyes: &[[f64; 3]],
+    spacing: f64,
+) -> f64 {
     let mut second = Vec::new();
     let mut temporal = Vec::new();
     let mut planar = Vec::new();
@@ -389,12 +394,15 @@ pub fn noise_floor(observations: &Observations, cameras: &[Camera], eyes: &[[f64
 }
 
 /// The distance along the viewing ray per pixel of `cam` of the points it saw.
-fn pixel_depths(pts: &[[f64; 3]], cam: &Camera) -> HashMap<(i64, i64), f64> {
+fn pixel_depths(pts: &[[f64; 3]], cam: &DepthCamera) -> HashMap<(i64, i64), f64> {
     let f = cam.frame();
     let mut depth = HashMap::new();
     for p in pts {
         if let Some([u, v, _]) = f.project(*p) {
-            let s = (0..3).map(|d| (p[d] - cam.eye[d]).powi(2)).sum::<f64>().sqrt();
+            let s = (0..3)
+                .map(|d| (p[d] - cam.camera.eye[d]).powi(2))
+                .sum::<f64>()
+                .sqrt();
             depth.insert((u.floor() as i64, v.floor() as i64), s);
         }
     }

@@ -16,8 +16,9 @@
 //! # Depth images and points
 //!
 //! [`render_depth`] rasterizes the surface mesh into a z-buffer (pinhole projection
-//! `u = c_x + f x / z`, `v = c_y - f y / z`, `f = (W / 2) / tan(fov_y / 2)`, see
-//! [`camera`]); only the body's mesh is drawn, so a ground plane is never observed. Each
+//! `u = c_x + f x / z`, `v = c_y - f y / z`, `f = (W / 2) / tan(fov_y / 2)` of the one
+//! pinhole camera, see [`cutfem::render::camera`]; a [`DepthCamera`] is that camera plus its
+//! image size); only the body's mesh is drawn, so a ground plane is never observed. Each
 //! pixel `(i, j)` that sees the surface at depth `z` gets sensor noise
 //! `z~ = z + sigma n`, `n ~ N(0, 1)` (Box-Muller on the camera's own stream, keyed by seed,
 //! frame and camera index, pixels in row-major order), and is unprojected at its centre
@@ -50,13 +51,14 @@ pub mod camera;
 pub mod raster;
 pub mod rng;
 
-pub use camera::{Camera, CameraFrame};
+pub use camera::DepthCamera;
 pub use raster::{render_depth, DepthImage};
 pub use rng::SplitMix64;
 
 use crate::observations::{Observations, ObservedPoint};
 use crate::Error;
-pub(crate) use cutfem::v3::{add, cross, dot, normalize, scale, sub};
+use cutfem::render::Camera;
+use cutfem::v3::{add, scale};
 use cutfem::TriMesh;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_6, TAU};
 use std::time::Instant;
@@ -110,7 +112,7 @@ impl RigParams {
                 self.radius
             )));
         }
-        if !(self.fov_y.is_finite() && self.fov_y > 0.0 && self.fov_y < std::f64::consts::PI) {
+        if !Camera::is_valid_fov_y(self.fov_y) {
             return Err(Error::Invalid(format!(
                 "fov_y must be in (0, 180) degrees, found {}",
                 self.fov_y.to_degrees()
@@ -142,7 +144,7 @@ impl RigParams {
 /// The cameras of the rig around `target` (see the module docs). Panics when `params` is
 /// invalid (see [`RigParams::validate`]).
 #[track_caller]
-pub fn place_cameras(target: [f64; 3], params: &RigParams) -> Vec<Camera> {
+pub fn place_cameras(target: [f64; 3], params: &RigParams) -> Vec<DepthCamera> {
     if let Err(e) = params.validate() {
         panic!("place_cameras: {e}");
     }
@@ -152,7 +154,7 @@ pub fn place_cameras(target: [f64; 3], params: &RigParams) -> Vec<Camera> {
         .map(|[theta, phi]| {
             let dir = [theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()];
             let eye = add(target, scale(dir, params.radius));
-            Camera::look_at(eye, target, params.fov_y, params.pixels, params.pixels)
+            DepthCamera::look_at(eye, target, params.fov_y, params.pixels, params.pixels)
         })
         .collect()
 }
@@ -161,7 +163,7 @@ pub fn place_cameras(target: [f64; 3], params: &RigParams) -> Vec<Camera> {
 /// Gaussian depth noise of standard deviation `sigma` drawn from `rng` (none when
 /// `sigma == 0`).
 pub fn unproject_depth(
-    camera: &Camera,
+    camera: &DepthCamera,
     image: &DepthImage,
     sigma: f64,
     rng: &mut SplitMix64,
@@ -191,7 +193,7 @@ pub fn unproject_depth(
 #[track_caller]
 pub fn observe_mesh(
     mesh: &TriMesh,
-    cameras: &[Camera],
+    cameras: &[DepthCamera],
     sigma: f64,
     seed: u64,
     frame: usize,
@@ -234,7 +236,7 @@ pub struct ObservationRun {
     /// the points seen, per frame
     pub observations: Observations,
     /// the rig, placed around the body's reference bounding-box centre
-    pub cameras: Vec<Camera>,
+    pub cameras: Vec<DepthCamera>,
     /// the point the cameras look at
     pub target: [f64; 3],
     /// the surface at the last frame observed
@@ -247,7 +249,7 @@ pub struct ObservationRun {
 
 /// The rig of `rig` cameras around the centre of `mesh`'s bounding box (a body's reference
 /// surface): the target and the cameras. Errors when the mesh is empty.
-pub fn rig_around(mesh: &TriMesh, rig: &RigParams) -> Result<([f64; 3], Vec<Camera>), Error> {
+pub fn rig_around(mesh: &TriMesh, rig: &RigParams) -> Result<([f64; 3], Vec<DepthCamera>), Error> {
     let (lo, hi) = mesh
         .bounding_box()
         .ok_or_else(|| Error::invalid("the body has no surface to observe"))?;
@@ -316,7 +318,7 @@ pub fn synthesize(
     sigma: f64,
     steps: usize,
     edit: impl FnOnce(&cutfem::fem::Grid, &mut cutfem::fem::Model),
-) -> Result<(Observations, Vec<Camera>), Error> {
+) -> Result<(Observations, Vec<DepthCamera>), Error> {
     let mut sim = scene.build_simulation()?;
     let mut model = sim.model.clone();
     edit(&sim.grid, &mut model);

@@ -1,13 +1,13 @@
-//! The depth rasterizer: a CPU z-buffer of a triangle mesh seen by a [`Camera`].
+//! The depth rasterizer: a CPU z-buffer of a triangle mesh seen by a [`DepthCamera`].
 //!
-//! The vertices are projected by the camera (see [`camera`](super::camera)) and the triangles
+//! The vertices are projected by the camera ([`cutfem::render::camera`]) and the triangles
 //! drawn by `cutfem::render::raster::rasterize`, the one z-buffer of the workspace (its
 //! module documents the perspective-correct depth `1 / z = sum_k l_k / z_k`, the
 //! watertight edge functions and the tie rule). Triangles with a corner at or behind the
 //! near plane (`z <= 1e-6 |target - eye|`) are skipped rather than clipped: the body must lie
 //! in front of the camera.
 
-use super::camera::Camera;
+use super::camera::DepthCamera;
 use cutfem::render::raster::{rasterize, ScreenVertex};
 use cutfem::TriMesh;
 
@@ -34,27 +34,16 @@ impl DepthImage {
 }
 
 /// Renders the depth image of `mesh` seen by `camera`.
-pub fn render_depth(mesh: &TriMesh, camera: &Camera) -> DepthImage {
+pub fn render_depth(mesh: &TriMesh, camera: &DepthCamera) -> DepthImage {
     let (w, h) = (camera.width, camera.height);
     let mut depth = vec![f64::INFINITY; w * h];
     let frame = camera.frame();
-    let near = NEAR * {
-        let d: [f64; 3] = std::array::from_fn(|a| camera.target[a] - camera.eye[a]);
-        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-300)
-    };
+    let near = NEAR * camera.camera.distance().max(1e-300);
     // project every vertex once
     let screen: Vec<ScreenVertex> = mesh
         .vertices
         .iter()
-        .map(|&p| {
-            let [x, y, z] = frame.to_view(p);
-            (z > near).then(|| {
-                (
-                    [frame.cx + frame.focal * x / z, frame.cy - frame.focal * y / z],
-                    z,
-                )
-            })
-        })
+        .map(|&p| frame.project_beyond(p, near).map(|q| ([q[0], q[1]], q[2])))
         .collect();
     rasterize(&screen, &mesh.faces, w, h, &mut depth, |_, _, _| {});
     DepthImage {
