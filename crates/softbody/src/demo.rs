@@ -11,6 +11,7 @@
 //!    their history, whose rms falls).
 
 use crate::diagnose::{print_text, run_job, Job};
+use adjoint::camera_file::CameraFile;
 use adjoint::cost::Robust;
 use adjoint::diagnosis::effects::effect;
 use adjoint::diagnosis::history::{self, Entry};
@@ -106,15 +107,9 @@ pub fn run(a: Args) -> Result<(), String> {
     let obs_path = out.join("observations.csv");
     obs.write_csv(&obs_path).map_err(|e| e.to_string())?;
     let eyes: Vec<[f64; 3]> = cameras.iter().map(|c| c.camera.eye).collect();
-    let cams_json = json!({"cameras": cameras.iter().enumerate().map(|(i, c)| json!({
-        "id": i, "eye": c.camera.eye, "target": c.camera.target, "up": c.camera.up,
-        "fov_y": c.camera.fov_y, "width": c.width, "height": c.height})).collect::<Vec<_>>(), "noise": NOISE, "seed": rig.seed});
     let cams_path = adjoint::fit::cameras_path(&obs_path);
-    std::fs::write(
-        &cams_path,
-        serde_json::to_string_pretty(&cams_json).expect("json"),
-    )
-    .map_err(|e| format!("{}: {e}", cams_path.display()))?;
+    std::fs::write(&cams_path, CameraFile::text(&cameras, NOISE, rig.seed))
+        .map_err(|e| format!("{}: {e}", cams_path.display()))?;
 
     // 2-3. the incomplete model: fit and diagnose
     let model_text = format!("{BODY}{}", effects_line(&base_effects))
