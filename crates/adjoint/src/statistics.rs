@@ -46,44 +46,7 @@
 
 use crate::problem::{Evaluation, Problem};
 use crate::Error;
-
-/// Inverts a small symmetric positive definite matrix (`n x n`, row-major) by Gauss-Jordan
-/// elimination with partial pivoting; `None` when it is singular.
-pub fn invert_small(a: &[f64], n: usize) -> Option<Vec<f64>> {
-    let mut m = a.to_vec();
-    let mut inv = vec![0.0; n * n];
-    for i in 0..n {
-        inv[i * n + i] = 1.0;
-    }
-    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
-    for col in 0..n {
-        let piv = (col..n).max_by(|&x, &y| m[x * n + col].abs().total_cmp(&m[y * n + col].abs()))?;
-        if m[piv * n + col].abs() <= 1e-14 * scale {
-            return None;
-        }
-        for k in 0..n {
-            m.swap(col * n + k, piv * n + k);
-            inv.swap(col * n + k, piv * n + k);
-        }
-        let d = 1.0 / m[col * n + col];
-        for k in 0..n {
-            m[col * n + k] *= d;
-            inv[col * n + k] *= d;
-        }
-        for r in 0..n {
-            if r != col {
-                let f = m[r * n + col];
-                if f != 0.0 {
-                    for k in 0..n {
-                        m[r * n + k] -= f * m[col * n + k];
-                        inv[r * n + k] -= f * inv[col * n + k];
-                    }
-                }
-            }
-        }
-    }
-    Some(inv)
-}
+pub use gpumat::solve::invert_small;
 
 /// First-order uncertainty of a fit (module docs).
 #[derive(Clone, Debug, PartialEq)]

@@ -12,9 +12,9 @@
 //!
 //! with `d_i = max(H_ii, d_i of earlier iterations)` (Moré's running maximum, kept above
 //! `1e-12 max_j d_j` so that a parameter without sensitivity stays damped). The system
-//! is solved by a dense Cholesky factorization; if it fails, `mu` is raised. The gain
-//! ratio compares the actual decrease with the one predicted by the quadratic model
-//! `L(h) = f + g'h + 1/2 h'Hh`:
+//! is solved by a dense Cholesky factorization ([`gpumat::solve::SmallCholesky`]); if it
+//! fails, `mu` is raised. The gain ratio compares the actual decrease with the one predicted
+//! by the quadratic model `L(h) = f + g'h + 1/2 h'Hh`:
 //!
 //! ```text
 //! rho = (f(x) - f(x + h)) / (L(0) - L(h)),   L(0) - L(h) = -g'h - 1/2 h'Hh = 1/2 h'(mu D h - g)
@@ -34,9 +34,9 @@
 
 use std::ops::ControlFlow;
 
-use super::cholesky::Cholesky;
 use super::run::{add_scaled, dot, norm2, start_failed, EvalFailure, Run};
 use super::types::{Damping, GaussNewtonObjective, IterationRecord, OptimParams, OptimResult, Termination};
+use gpumat::solve::SmallCholesky;
 
 /// Damping beyond which no step can make progress.
 const MAX_DAMPING: f64 = 1e100;
@@ -91,7 +91,7 @@ pub fn levenberg_marquardt<O: GaussNewtonObjective + ?Sized>(
             for i in 0..n {
                 a[i * n + i] += mu * scale[i];
             }
-            let Some(chol) = Cholesky::factor(&a, n) else {
+            let Some(chol) = SmallCholesky::factor(&a, n) else {
                 raise(&mut mu, &mut nu);
                 continue;
             };

@@ -48,7 +48,6 @@
 //! assert!(info.termination.is_converged());
 //! ```
 
-mod cholesky;
 mod gd;
 mod lbfgs;
 mod line_search;

@@ -1,16 +1,18 @@
 //! Linear solvers: batched preconditioned conjugate gradients (thesis sec. 3.4, Alg. 4.1), a
 //! direct sparse Cholesky solver (faer) usable alone, as a fallback, or as a preconditioner,
-//! with a geometric nested-dissection ordering, and the block incomplete Cholesky IC(0)
-//! preconditioner.
+//! with a geometric nested-dissection ordering, the block incomplete Cholesky IC(0)
+//! preconditioner, and small dense solves (Cholesky, inverse) for the optimizers.
 
 mod cg;
 mod cholesky;
+mod dense;
 mod ic0;
 mod ordering;
 mod precond;
 
 pub use cg::{cg, CgError, CgInfo, CgParams};
 pub use cholesky::SparseCholesky;
+pub use dense::{invert_small, SmallCholesky};
 pub use ic0::{BlockIc0, Ic0Params};
 pub use ordering::nested_dissection;
 pub use precond::{BlockJacobi, IdentityPreconditioner, Jacobi};
