@@ -7,18 +7,10 @@ use adjoint::observe::{observe_mesh, place_cameras, record, render_depth, DepthC
 use cutfem::mesh::distance::closest_point_on_triangle;
 use cutfem::shapes::Shape;
 use cutfem::surface::extract_surface;
+use cutfem::v3::{dot, norm, sub};
 use cutfem::TriMesh;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_6, PI, TAU};
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
 
 /// The closed box `[-e, e]^3` as 12 triangles.
 fn cube(e: f64) -> TriMesh {
