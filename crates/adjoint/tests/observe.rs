@@ -11,7 +11,6 @@ use cutfem::v3::{dot, norm, sub};
 use cutfem::TriMesh;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_6, PI, TAU};
 
-
 /// The closed box `[-e, e]^3` as 12 triangles.
 fn cube(e: f64) -> TriMesh {
     let vertices = (0..8)
