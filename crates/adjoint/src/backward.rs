@@ -27,6 +27,7 @@ use crate::local::{
     cell_elastic_adjoint, contact_adjoint, deformation_gradient_adjoint, polar_rotation_adjoint,
 };
 use cutfem::fem::element::{corner_offsets, deformation_gradient_with, POLAR_ITERATIONS};
+use cutfem::fem::collision::Ground;
 use cutfem::fem::{NewmarkCoefficients, Simulation};
 use gpumat::{Mat3, Matrix, Vec3};
 use rayon::prelude::*;
@@ -72,7 +73,8 @@ pub fn step_lagrangian(sim: &Simulation, u_next: &Matrix<Vec3<f64>>, lam: &Matri
 
 /// Adds the derivatives of `L = lam^T (b - A u')` (module docs) to `u_bar`, `v_bar` and `grad`.
 /// `sim` must have been assembled ([`Simulation::assemble_system`]) at the step's start state
-/// `(sim.u, sim.v)`; `u_next` is the state the forward step produced.
+/// `(sim.u, sim.v)`, its contact linearized at `u_next`
+/// ([`Simulation::linearize_contact_at`]); `u_next` is the state the forward step produced.
 ///
 /// The stages of [`Simulation::step`] before the solve (rotations, element blocks, external
 /// force, contact, Newmark `A` and `b`) each add their terms of `L`; the solve and the
@@ -271,7 +273,11 @@ impl Stage<'_> {
             let (a, b, t) = (c.a as usize, c.b as usize, c.t);
             let ip = |s: &[Vec3<f64>]| s[a] * (1.0 - t) + s[b] * t;
             let x0 = grid.positions[a] * (1.0 - t) + grid.positions[b] * t;
-            let adj = contact_adjoint(g, dt, theta, x0, ip(us), ip(uns), ip(vs), ip(ls));
+            let spring = Ground {
+                stiffness: g.spring(c),
+                ..*g
+            };
+            let adj = contact_adjoint(&spring, dt, theta, x0, ip(us), ip(uns), ip(vs), ip(ls));
             ubs[a] = ubs[a] + adj.u * (1.0 - t);
             ubs[b] = ubs[b] + adj.u * t;
             vbs[a] = vbs[a] + adj.v * (1.0 - t);

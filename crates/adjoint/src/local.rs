@@ -44,7 +44,10 @@
 //! Per crossing with interpolated adjoint `Lambda = n . lam_c`, signed distance
 //! `d = n . (X_c + u_c) - height` and `S(d) = softmin_alpha(0, d)`, the implicit scheme
 //! contributes `L_c = dt Lambda (-k S(d) - theta k S'(d) n . (u'_c - u_c))`, the thesis'
-//! explicit scheme `L_c = dt Lambda (-k S(d) - theta dt k S'(d) n . v_c)`.
+//! explicit scheme `L_c = dt Lambda (-k S(d) - theta dt k S'(d) n . v_c)`, the penalty
+//! scheme (Newton-iterated, `k` the crossing's spring `k a_c`, `d'` at the converged `u'`)
+//! `L_c = -dt Lambda k ((1 - theta) S(d) + theta S(d'))`: its `u'` derivative is the contact
+//! part of the Jacobian `A` at `u'`, which the backward solve already holds.
 
 use cutfem::fem::collision::{softmin0, softmin0_derivative, ContactScheme, Ground};
 use cutfem::fem::element::ElementSet;
@@ -197,11 +200,15 @@ pub fn contact_value(
     let d = n.dot(x0 + u) - g.height;
     let k = g.stiffness;
     let (s, s1) = (softmin0(d, g.softness), softmin0_derivative(d, g.softness));
-    let tail = match g.scheme {
-        ContactScheme::Implicit => theta * k * s1 * n.dot(u_next - u),
-        ContactScheme::Thesis => theta * dt * k * s1 * n.dot(v),
+    let force = match g.scheme {
+        ContactScheme::Implicit => -k * s - theta * k * s1 * n.dot(u_next - u),
+        ContactScheme::Thesis => -k * s - theta * dt * k * s1 * n.dot(v),
+        ContactScheme::Penalty => {
+            let d1 = n.dot(x0 + u_next) - g.height;
+            -k * ((1.0 - theta) * s + theta * softmin0(d1, g.softness))
+        }
     };
-    dt * n.dot(lam) * (-k * s - tail)
+    dt * n.dot(lam) * force
 }
 
 /// The derivatives of [`contact_value`] (the normal taken as a free vector).
@@ -226,9 +233,26 @@ pub fn contact_adjoint(
         softmin0_second(d, alpha),
     );
     let big_l = n.dot(lam);
+    if g.scheme == ContactScheme::Penalty {
+        // L = dt Lambda (-k) ((1 - theta) S(d) + theta S(d')), d' at the converged u'
+        let p1 = x0 + u_next;
+        let d1 = n.dot(p1) - g.height;
+        let (s_1, s1_1) = (softmin0(d1, alpha), softmin0_derivative(d1, alpha));
+        let inner = -k * ((1.0 - theta) * s + theta * s_1);
+        let dl_dd = dt * big_l * (-k) * (1.0 - theta) * s1;
+        let dl_dd1 = dt * big_l * (-k) * theta * s1_1;
+        return ContactAdjoint {
+            u: n * dl_dd,
+            u_next: n * dl_dd1,
+            v: Vec3::default(),
+            normal: lam * (dt * inner) + p * dl_dd + p1 * dl_dd1,
+            height: -dl_dd - dl_dd1,
+            lam: n * (dt * inner),
+        };
+    }
     // L = dt Lambda (-k S(d) - c(d) q) with q the scheme's rate term
     let (q_vec, coef) = match g.scheme {
-        ContactScheme::Implicit => (u_next - u, theta * k),
+        ContactScheme::Implicit | ContactScheme::Penalty => (u_next - u, theta * k),
         ContactScheme::Thesis => (v, theta * dt * k),
     };
     let q = n.dot(q_vec);
@@ -243,7 +267,7 @@ pub fn contact_adjoint(
     };
     out.normal = lam * (dt * inner) + p * dl_dd + q_vec * dl_dq;
     match g.scheme {
-        ContactScheme::Implicit => {
+        ContactScheme::Implicit | ContactScheme::Penalty => {
             out.u = out.u - n * dl_dq;
             out.u_next = n * dl_dq;
         }

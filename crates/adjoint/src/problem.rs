@@ -276,6 +276,8 @@ impl Problem {
             let g = Matrix::eval(ub.ex() + vb.ex() * c);
             self.sim.u = traj.u[step].unpack();
             self.sim.v = traj.v[step].unpack();
+            let u_next = traj.u[step + 1].unpack();
+            self.sim.linearize_contact_at(Some(u_next.clone()));
             self.sim.assemble_system();
             let last = lam.clone();
             if let Some(prev) = &lam_prev {
@@ -293,7 +295,7 @@ impl Problem {
             let mut new_vb = Matrix::eval(vb.ex() * -nm.cold);
             step_adjoint(
                 &self.sim,
-                &traj.u[step + 1].unpack(),
+                &u_next,
                 &lam,
                 &mut new_ub,
                 &mut new_vb,

@@ -100,6 +100,7 @@ impl Problem {
                     self.sim.set_model(m.clone()).map_err(invalid)?;
                     self.sim.u = Matrix::eval(u0.ex() + su[k].ex() * (sign * EPS));
                     self.sim.v = Matrix::eval(v0.ex() + sv[k].ex() * (sign * EPS));
+                    self.sim.linearize_contact_at(Some(u1.clone()));
                     self.sim.assemble_system();
                     res[side] = Matrix::eval(self.sim.newmark_rhs() - self.sim.newmark_matrix() * &u1);
                 }
@@ -108,6 +109,7 @@ impl Problem {
             self.sim.set_model(model.clone()).map_err(invalid)?;
             self.sim.u = u0;
             self.sim.v = v0;
+            self.sim.linearize_contact_at(Some(u1.clone()));
             self.sim.assemble_system();
             for k in 0..n {
                 let mut x = Matrix::eval(su[k].ex() + sv[k].ex() * dt);

@@ -93,9 +93,9 @@ fn problem(cost: Box<dyn Cost>, params: ParamSet) -> Problem {
     Problem::new(sim, params, cost, STEPS).unwrap()
 }
 
-/// Compares each gradient component with central differences at steps 1e-3, 1e-4 and 1e-5
-/// (in the unconstrained coordinates, which are O(1)) and keeps the best agreement: large
-/// steps carry truncation error, small ones the rounding noise of the whole simulation (about
+/// Compares each gradient component with central differences at steps 1e-3 to 1e-6 (in the
+/// unconstrained coordinates, which are O(1)) and keeps the best agreement: large steps carry
+/// truncation error (a sharp contact law needs 1e-6 for the ground height), small ones the rounding noise of the whole simulation (about
 /// 1e-15 of the cost), which dominates for components much smaller than the others: an
 /// absolute difference below `1e-10 ||g||_inf` also passes (components 1e5 times smaller than
 /// the largest reach that noise floor).
@@ -107,7 +107,7 @@ fn check_against_fd(p: &mut Problem, tol: f64) {
     let gmax = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     for k in 0..x.len() {
         let mut best = (f64::INFINITY, 0.0);
-        for eps in [1e-3, 1e-4, 1e-5] {
+        for eps in [1e-3, 1e-4, 1e-5, 1e-6] {
             let mut xp = x.clone();
             xp[k] += eps;
             let mut xm = x.clone();
@@ -544,6 +544,61 @@ fn substep_gradient_and_gauss_newton_match_finite_differences() {
     let n = x.len();
     let h = p.gauss_newton_matrix(&x).unwrap();
     let eps = 1e-4;
+    for b in 0..n {
+        let (mut xp, mut xm) = (x.clone(), x.clone());
+        xp[b] += eps;
+        xm[b] -= eps;
+        let (gp, gm) = (p.gradient(&xp).unwrap().1, p.gradient(&xm).unwrap().1);
+        for a in 0..n {
+            let fd = (gp[a] - gm[a]) / (2.0 * eps);
+            let scale = h[a * n + a].abs().max(h[b * n + b].abs());
+            assert!(
+                (h[a * n + b] - fd).abs() <= 1e-5 * scale,
+                "H[{a}][{b}]: tangent {} vs fd {fd}",
+                h[a * n + b]
+            );
+        }
+    }
+}
+
+/// The penalty contact (per unit area, Newton-iterated within each step) with a sharper law.
+fn penalty(mut m: Model) -> Model {
+    let g = m.ground.as_mut().unwrap();
+    g.scheme = ContactScheme::Penalty;
+    g.stiffness = 3e5;
+    g.softness = 300.0;
+    m
+}
+
+/// The adjoint of the converged Newton step (implicit function theorem) against finite
+/// differences of the whole simulation, and the Gauss-Newton matrix at the truth against the
+/// Hessian.
+#[test]
+fn penalty_contact_gradient_and_gauss_newton_match_finite_differences() {
+    let reference = trajectory(penalty(truth()));
+    let newton = {
+        let mut sim = Simulation::new(grid(), penalty(truth())).unwrap();
+        sim.solver.direct = true;
+        (0..STEPS).map(|_| sim.step().unwrap().newton).sum::<usize>()
+    };
+    assert!(newton > 0, "the penalty steps did no Newton iteration: no contact?");
+    let observed = |r: &[Matrix<Vec3<f64>>]| DisplacementCost {
+        reference: (2..=STEPS).step_by(2).map(|t| (t, 1.0, r[t].clone())).collect(),
+    };
+    let mut sim = Simulation::new(grid(), penalty(start())).unwrap();
+    sim.solver.direct = true;
+    let mut p = Problem::new(sim, all_params(), Box::new(observed(&reference)), STEPS).unwrap();
+    check_against_fd(&mut p, 1e-6);
+
+    let mut sim = Simulation::new(grid(), penalty(truth())).unwrap();
+    sim.solver.direct = true;
+    let params = ParamSet::parse(&["young,poisson,gravity,ground"]).unwrap();
+    let mut p = Problem::new(sim, params, Box::new(observed(&reference)), STEPS).unwrap();
+    let x = p.x0();
+    let n = x.len();
+    let h = p.gauss_newton_matrix(&x).unwrap();
+    // the sharp law's third derivatives need a small step (the error falls as eps^2)
+    let eps = 1e-5;
     for b in 0..n {
         let (mut xp, mut xm) = (x.clone(), x.clone());
         xp[b] += eps;

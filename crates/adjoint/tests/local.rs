@@ -106,7 +106,7 @@ fn cell_elastic_adjoint_matches_central_differences() {
 #[test]
 fn contact_adjoint_matches_central_differences() {
     let mut rng = Rng(3);
-    for scheme in [ContactScheme::Implicit, ContactScheme::Thesis] {
+    for scheme in [ContactScheme::Implicit, ContactScheme::Thesis, ContactScheme::Penalty] {
         for trial in 0..20 {
             let g = Ground {
                 normal: (Vec3::new(0.0, 1.0, 0.0) + rng.vec() * 0.2),
@@ -184,7 +184,8 @@ fn small_sim(scheme: ContactScheme) -> Simulation {
         ground: Some(Ground {
             normal: Vec3::new(0.05, 1.0, -0.03),
             height: 0.16,
-            stiffness: 1e3,
+            // per unit area for the penalty scheme (about 1e3 per crossing here)
+            stiffness: if scheme == ContactScheme::Penalty { 3e5 } else { 1e3 },
             softness: 60.0,
             scheme,
         }),
@@ -201,7 +202,7 @@ fn small_sim(scheme: ContactScheme) -> Simulation {
 
 #[test]
 fn step_adjoint_matches_central_differences() {
-    for scheme in [ContactScheme::Implicit, ContactScheme::Thesis] {
+    for scheme in [ContactScheme::Implicit, ContactScheme::Thesis, ContactScheme::Penalty] {
         let mut sim = small_sim(scheme);
         let n = sim.grid.dofs();
         let mut rng = Rng(4);
@@ -217,6 +218,8 @@ fn step_adjoint_matches_central_differences() {
         let lam = rv(&mut rng, 1.0);
         let base = sim.model.clone();
 
+        // the penalty scheme's adjoint linearizes at the converged u' (others ignore it)
+        sim.linearize_contact_at(Some(u_next.clone()));
         sim.assemble_system();
         let mut ub = Matrix::zeros(n, 1, 1);
         let mut vb = Matrix::zeros(n, 1, 1);
@@ -229,6 +232,7 @@ fn step_adjoint_matches_central_differences() {
             sim.reset(model.clone()).unwrap();
             sim.u = u.clone();
             sim.v = v.clone();
+            sim.linearize_contact_at(Some(u_next.clone()));
             sim.assemble_system();
             step_lagrangian(&sim, &u_next, &lam)
         };

@@ -111,7 +111,8 @@ pub struct GroundSection {
     /// softmin alpha
     #[serde(default = "ground_alpha")]
     pub softness: f64,
-    /// time discretization of the contact force: "implicit" (default) or "thesis"
+    /// time discretization of the contact force: "implicit" (default), "thesis" or "penalty"
+    /// (`stiffness` then per unit area)
     #[serde(default)]
     pub scheme: crate::fem::collision::ContactScheme,
 }

@@ -22,6 +22,19 @@
 //!   `1-t`, `t`), and its theta-weighted part `theta J u'` moves into the Newmark matrix:
 //!   `A += theta dt K_c`, `b += dt (f(u) - theta J u)`, `K_c = -J` (positive semi-definite).
 //!   Stable for stiff springs.
+//! * `Penalty`: a penalty per unit area, iterated to convergence within the step. The spring of
+//!   a crossing stands for the part of the body's (rest) surface around it: a surface with unit
+//!   normal `m` crosses `|m|_1 / h^2` grid edges per unit area, so each crossing carries the
+//!   area `a_c = h^2 / |m|_1` (`m` the gradient of the cell's trilinear SDF at the crossing)
+//!   and its spring is `k a_c` with `k` the stiffness per unit area (pressure per unit
+//!   penetration): the contact's stiffness no longer depends on the grid. The force is taken
+//!   at the new state, `theta f(u') + (1 - theta) f(u)` (eq. 2.6.4), and `u'` is found by
+//!   Newton's method: each iteration linearizes `f` at the last iterate `u_l`
+//!   (`A += theta dt K_c(u_l)`, `b += dt ((1 - theta) f(u) + theta (f(u_l) + K_c(u_l) u_l))`)
+//!   and solves again, until no crossing's distance moves by more than
+//!   [`PENALTY_TOLERANCE`]` h`. Its first iteration is the `Implicit` step. A sharp law (large
+//!   `alpha`, little push before contact) is then stable at any time step; the adjoint
+//!   linearizes at the converged `u'` (implicit function theorem).
 
 use super::grid::Grid;
 use gpumat::{Matrix, Vec3};
@@ -37,7 +50,16 @@ pub enum ContactScheme {
     Implicit,
     /// the thesis' explicit prediction `f + theta dt df/dt`
     Thesis,
+    /// a penalty per unit area, Newton-iterated within each step
+    Penalty,
 }
+
+/// Newton iterations of the [`ContactScheme::Penalty`] step stop when no crossing's distance
+/// to the ground moved by more than this many cell widths in the last iteration.
+pub const PENALTY_TOLERANCE: f64 = 1e-10;
+
+/// At most this many Newton iterations per step with [`ContactScheme::Penalty`].
+pub const PENALTY_MAX_ITERATIONS: usize = 50;
 
 /// A ground plane with its spring constants.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -46,7 +68,7 @@ pub struct Ground {
     pub normal: Vec3<f64>,
     /// offset: the ground is `n . x >= height`
     pub height: f64,
-    /// spring stiffness `k`
+    /// spring stiffness `k`: per crossing, or per unit area with [`ContactScheme::Penalty`]
     pub stiffness: f64,
     /// softmin sharpness `alpha`
     pub softness: f64,
@@ -63,6 +85,18 @@ pub struct Crossing {
     pub b: u32,
     /// position along the edge, `x = (1-t) x_a + t x_b`
     pub t: f64,
+    /// the area of rest surface the crossing stands for, `h^2 / |m|_1` (module docs)
+    pub area: f64,
+}
+
+impl Ground {
+    /// The spring constant of crossing `c`: `k`, or `k a_c` with [`ContactScheme::Penalty`].
+    pub fn spring(&self, c: &Crossing) -> f64 {
+        match self.scheme {
+            ContactScheme::Penalty => self.stiffness * c.area,
+            ContactScheme::Implicit | ContactScheme::Thesis => self.stiffness,
+        }
+    }
 }
 
 /// `softmin_alpha(0, d) = -ln(1 + e^{-alpha d}) / alpha`, evaluated stably.
@@ -89,9 +123,25 @@ pub fn softmin0_derivative(d: f64, alpha: f64) -> f64 {
     }
 }
 
+/// The gradient (in cell-local coordinates, per unit of the local coordinate) of the trilinear
+/// interpolant of the corner values `phi` at local point `p` in `[0, 1]^3`.
+fn trilinear_gradient(phi: &[f64; 8], p: [f64; 3]) -> [f64; 3] {
+    let mut g = [0.0; 3];
+    for (c, &f) in phi.iter().enumerate() {
+        let bit = |axis: usize| (c >> axis) & 1 == 1;
+        let w = |axis: usize| if bit(axis) { p[axis] } else { 1.0 - p[axis] };
+        let dw = |axis: usize| if bit(axis) { 1.0 } else { -1.0 };
+        g[0] += f * dw(0) * w(1) * w(2);
+        g[1] += f * w(0) * dw(1) * w(2);
+        g[2] += f * w(0) * w(1) * dw(2);
+    }
+    g
+}
+
 /// All surface crossings of grid edges between two active nodes, each edge once, in a fixed
-/// order.
+/// order, with the area each stands for (module docs).
 pub fn crossings(grid: &Grid) -> Vec<Crossing> {
+    let h = grid.h();
     let mut seen = BTreeSet::new();
     let mut out = Vec::new();
     const EDGES: [(usize, usize); 12] = [
@@ -118,10 +168,24 @@ pub fn crossings(grid: &Grid) -> Vec<Crossing> {
             if !seen.insert((a.min(b), a.max(b))) {
                 continue;
             }
+            let t = fa / (fa - fb);
+            // the crossing in cell-local coordinates and the SDF's normal there
+            let corner = |q: usize| [q & 1, (q >> 1) & 1, (q >> 2) & 1].map(|x| x as f64);
+            let (cp, cq) = (corner(p), corner(q));
+            let at = std::array::from_fn(|i| cp[i] + t * (cq[i] - cp[i]));
+            let m = trilinear_gradient(&c.phi, at);
+            let (l1, l2) = (
+                m.iter().map(|x| x.abs()).sum::<f64>(),
+                m.iter().map(|x| x * x).sum::<f64>().sqrt(),
+            );
+            // |m|_1 / |m|_2 lies in [1, sqrt 3]; a vanishing gradient (never on a crossing of a
+            // proper SDF) counts as an axis-aligned surface
+            let ratio = if l2 > 0.0 { l1 / l2 } else { 1.0 };
             out.push(Crossing {
                 a,
                 b,
-                t: fa / (fa - fb),
+                t,
+                area: h * h / ratio,
             });
         }
     }
@@ -129,15 +193,17 @@ pub fn crossings(grid: &Grid) -> Vec<Crossing> {
 }
 
 /// Adds the contact forces for displacement `u` and velocity `v` to `f`; returns the number
-/// of crossings in contact (`d < 0`). With [`ContactScheme::Implicit`] the force added is
+/// of crossings in contact (`d < 0`, at the linearization point). With [`ContactScheme::Implicit`] the force added is
 /// `f(u) - theta J u` and the stiffness `theta dt K_c` is returned in `stiffness` as
-/// `(crossing, k softmin'(d))` terms (the caller adds them to the Newmark matrix).
+/// `(crossing, k softmin'(d))` terms (the caller adds them to the Newmark matrix). With
+/// [`ContactScheme::Penalty`] the force is linearized at `at` (the Newton iterate `u_l`; `u`
+/// when `None`): `(1 - theta) f(u) + theta (f(u_l) - J(u_l) u_l)`, and the slopes are taken
+/// at `u_l`.
 pub fn add_ground_forces(
     grid: &Grid,
     crossings: &[Crossing],
     ground: &Ground,
-    u: &Matrix<Vec3<f64>>,
-    v: &Matrix<Vec3<f64>>,
+    (u, v, at): (&Matrix<Vec3<f64>>, &Matrix<Vec3<f64>>, Option<&Matrix<Vec3<f64>>>),
     dt: f64,
     theta: f64,
     f: &mut Matrix<Vec3<f64>>,
@@ -145,20 +211,29 @@ pub fn add_ground_forces(
 ) -> usize {
     stiffness.clear();
     let (us, vs) = (u.as_slice(), v.as_slice());
+    // the linearization point: the Newton iterate of the penalty scheme, else u
+    let ls = match (ground.scheme, at) {
+        (ContactScheme::Penalty, Some(m)) => m.as_slice(),
+        _ => us,
+    };
     let n = ground.normal;
     let mut touching = 0;
     let fs = f.as_mut_slice();
     for c in crossings {
         let (a, b, t) = (c.a as usize, c.b as usize, c.t);
-        let x = (grid.positions[a] + us[a]) * (1.0 - t) + (grid.positions[b] + us[b]) * t;
+        let x0 = grid.positions[a] * (1.0 - t) + grid.positions[b] * t;
+        let x = x0 + us[a] * (1.0 - t) + us[b] * t;
+        let ul = ls[a] * (1.0 - t) + ls[b] * t;
+        let dl = n.dot(x0 + ul) - ground.height;
+        if dl < 0.0 {
+            touching += 1;
+        }
         let vel = vs[a] * (1.0 - t) + vs[b] * t;
         let d = n.dot(x) - ground.height;
         let ddt = n.dot(vel);
-        let f_now = -ground.stiffness * softmin0(d, ground.softness);
-        let slope = ground.stiffness * softmin0_derivative(d, ground.softness);
-        if d < 0.0 {
-            touching += 1;
-        }
+        let k = ground.spring(c);
+        let f_now = -k * softmin0(d, ground.softness);
+        let slope = k * softmin0_derivative(d, ground.softness);
         let mag = match ground.scheme {
             ContactScheme::Thesis => {
                 let f_next = f_now + dt * (-slope * ddt);
@@ -172,10 +247,43 @@ pub fn add_ground_forces(
                 let un = n.dot(us[a] * (1.0 - t) + us[b] * t);
                 f_now + theta * slope * un
             }
+            ContactScheme::Penalty => {
+                let f_l = -k * softmin0(dl, ground.softness);
+                let slope_l = k * softmin0_derivative(dl, ground.softness);
+                if slope_l > 0.0 {
+                    stiffness.push((*c, slope_l));
+                }
+                (1.0 - theta) * f_now + theta * (f_l + slope_l * n.dot(ul))
+            }
         };
         let fv = n * mag;
         fs[a] = fs[a] + fv * (1.0 - t);
         fs[b] = fs[b] + fv * t;
     }
     touching
+}
+
+/// How far the Newton iterate `x` of a [`ContactScheme::Penalty`] step is from solving the
+/// step: the largest error of the contact law's linearization at `at` (the previous iterate)
+/// over the crossings, `|S(d_x) - S(d_l) - S'(d_l) (d_x - d_l)|` (a distance; the force error
+/// is the spring times it).
+pub fn penalty_residual(
+    grid: &Grid,
+    crossings: &[Crossing],
+    ground: &Ground,
+    at: &Matrix<Vec3<f64>>,
+    x: &Matrix<Vec3<f64>>,
+) -> f64 {
+    let (ls, xs) = (at.as_slice(), x.as_slice());
+    let (n, alpha) = (ground.normal, ground.softness);
+    let mut worst = 0.0f64;
+    for c in crossings {
+        let (a, b, t) = (c.a as usize, c.b as usize, c.t);
+        let x0 = grid.positions[a] * (1.0 - t) + grid.positions[b] * t;
+        let dist = |s: &[Vec3<f64>]| n.dot(x0 + s[a] * (1.0 - t) + s[b] * t) - ground.height;
+        let (dl, dx) = (dist(ls), dist(xs));
+        let lin = softmin0(dl, alpha) + softmin0_derivative(dl, alpha) * (dx - dl);
+        worst = worst.max((softmin0(dx, alpha) - lin).abs());
+    }
+    worst
 }

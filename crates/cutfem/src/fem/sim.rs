@@ -27,7 +27,10 @@ mod kept;
 pub use super::assembly::newmark_system;
 use super::assembly::{Assembler, CellWork, ElementBlocks, Material};
 use super::assembly::{StepCells, StepOutput, StepState};
-use super::collision::{add_ground_forces, crossings, Crossing};
+use super::collision::{
+    add_ground_forces, crossings, penalty_residual, ContactScheme, Crossing, PENALTY_MAX_ITERATIONS,
+    PENALTY_TOLERANCE,
+};
 use super::element::{BlockCache, POLAR_ITERATIONS};
 use super::grid::Grid;
 use super::model::Model;
@@ -75,6 +78,8 @@ pub struct Simulation {
     /// per-cell data of the corotated assembly (buffers reused by every step)
     cell_work: CellWork,
     contact: Vec<(Crossing, f64)>,
+    /// where the penalty contact is linearized ([`Simulation::linearize_contact_at`])
+    contact_at: Option<Matrix<Vec3<f64>>>,
     f: Matrix<Vec3<f64>>,
     b: Matrix<Vec3<f64>>,
 }
@@ -122,6 +127,7 @@ impl Simulation {
             rotations: None,
             cell_work: CellWork::default(),
             contact: Vec::new(),
+            contact_at: None,
         };
         sim.v = sim.initial_velocity();
         Ok(sim)
@@ -138,6 +144,7 @@ impl Simulation {
         self.steps = 0;
         self.rotations = None;
         self.contact.clear();
+        self.contact_at = None;
         self.k.forget();
         Ok(())
     }
@@ -302,27 +309,71 @@ impl Simulation {
     /// Advances one integrator step of `model.dt`: [`Simulation::assemble_system`], then the
     /// solve and the velocity update (eq. 2.6.2-2.6.4).
     pub fn substep(&mut self) -> Result<StepInfo, Error> {
+        self.contact_at = None;
         let mut info = self.assemble_system_with(false);
         let dt = self.model.dt;
-
-        let t3 = Instant::now();
         let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);
-        let si = self
-            .linear
-            .solve(&self.a, &self.b, &mut x, &self.solver)
-            .map_err(|e| Error::Invalid(format!("{e}; {}", self.scales_note())))?;
-        info.iterations = si.iterations;
-        info.residual = si.residual;
-        info.fallback = si.fallback;
-        info.factorizations = si.factorizations;
-        info.factor_s = si.factor_s;
-        info.solve_s = t3.elapsed().as_secs_f64();
+        self.solve_step(&mut x, &mut info)?;
+        if let Some(g) = self.model.ground.filter(|g| g.scheme == ContactScheme::Penalty) {
+            // Newton on the contact (collision module docs): linearize at the last iterate
+            let tolerance = PENALTY_TOLERANCE * self.grid.h();
+            let mut at = self.u.clone();
+            for iteration in 1.. {
+                if penalty_residual(&self.grid, &self.crossings, &g, &at, &x) <= tolerance {
+                    break;
+                }
+                if iteration > PENALTY_MAX_ITERATIONS {
+                    self.contact_at = None;
+                    return Err(Error::Invalid(format!(
+                        "the penalty contact did not converge in {PENALTY_MAX_ITERATIONS} Newton \
+                         iterations at step {}; lower ground.softness ({}) or time.dt ({})",
+                        self.steps + 1,
+                        g.softness,
+                        self.model.dt
+                    )));
+                }
+                self.contact_at = Some(x.clone());
+                let more = self.assemble_system_with(false);
+                info.newton += 1;
+                info.assembly_s += more.assembly_s;
+                info.stiffness_s += more.stiffness_s;
+                info.collision_s += more.collision_s;
+                info.contacts = more.contacts;
+                self.solve_step(&mut x, &mut info)?;
+                at = self.contact_at.take().expect("set above");
+            }
+        }
 
         // v' = (u' - u)/(theta dt) - (1-theta)/theta v, then u = u'
         self.model.newmark().update_velocity(&mut self.v, &x, &self.u);
         self.u = x;
         self.steps += 1;
         Ok(info)
+    }
+
+    /// Solves `A x = b` (the last assembly's) from `x`, adding the solver's counts and times to
+    /// `info`.
+    fn solve_step(&mut self, x: &mut Matrix<Vec3<f64>>, info: &mut StepInfo) -> Result<(), Error> {
+        let t = Instant::now();
+        let si = self
+            .linear
+            .solve(&self.a, &self.b, x, &self.solver)
+            .map_err(|e| Error::Invalid(format!("{e}; {}", self.scales_note())))?;
+        info.iterations += si.iterations;
+        info.residual = si.residual;
+        info.fallback |= si.fallback;
+        info.factorizations += si.factorizations;
+        info.factor_s += si.factor_s;
+        info.solve_s += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Where the next [`Simulation::assemble_system`] linearizes a
+    /// [`ContactScheme::Penalty`] contact: at `at` (the adjoint and tangent passes give the
+    /// step's converged `u'`, so that `A` is the Jacobian of the converged step); `None`: at
+    /// `u`. Other schemes ignore it; every step resets it.
+    pub fn linearize_contact_at(&mut self, at: Option<Matrix<Vec3<f64>>>) {
+        self.contact_at = at;
     }
 
     /// The scales of the current model and the parameters that dominate them
@@ -360,8 +411,7 @@ impl Simulation {
                 &self.grid,
                 &self.crossings,
                 ground,
-                &self.u,
-                &self.v,
+                (&self.u, &self.v, self.contact_at.as_ref()),
                 dt,
                 theta,
                 &mut self.f,
@@ -451,7 +501,7 @@ impl Simulation {
     }
 
     /// The crossings in contact at the last assembly with their spring slopes
-    /// `k softmin'(d)` (implicit contact scheme only).
+    /// `k softmin'(d)` (implicit and penalty contact schemes).
     pub fn contact(&self) -> &[(Crossing, f64)] {
         &self.contact
     }

@@ -15,6 +15,8 @@ pub struct StepInfo {
     pub factor_s: f64,
     /// crossings in contact with the ground
     pub contacts: usize,
+    /// Newton iterations of the penalty contact beyond each step's first solve
+    pub newton: usize,
     /// seconds in assembly (rotations, stiffness, corotation forces, A and b)
     pub assembly_s: f64,
     /// the part of `assembly_s` spent on rotations and stiffness values (the thesis' "matrix
@@ -38,6 +40,7 @@ impl StepInfo {
         self.factorizations += s.factorizations;
         self.factor_s += s.factor_s;
         self.contacts = s.contacts;
+        self.newton += s.newton;
         self.assembly_s += s.assembly_s;
         self.stiffness_s += s.stiffness_s;
         self.collision_s += s.collision_s;

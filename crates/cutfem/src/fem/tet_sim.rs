@@ -67,6 +67,12 @@ impl TetSimulation {
     /// initial velocity (zero at fixed nodes).
     pub fn new(mesh: TetMesh, model: Model) -> Result<Self, Error> {
         model.validate()?;
+        if model.ground.is_some_and(|g| g.scheme == ContactScheme::Penalty) {
+            return Err(Error::Invalid(
+                "ground.scheme: \"penalty\" is not available on the tetrahedral baseline (use \"implicit\" or \"thesis\")"
+                    .into(),
+            ));
+        }
         model.check_external_dofs(mesh.dofs())?;
         let assembler = TetAssembler::new(&mesh);
         let mass = assembler.lumped_mass(&mesh, model.density);
@@ -223,7 +229,8 @@ impl TetSimulation {
             }
             let mag = match ground.scheme {
                 ContactScheme::Thesis => theta * (f_now - dt * slope * n.dot(vs[i])) + (1.0 - theta) * f_now,
-                ContactScheme::Implicit => {
+                // the penalty scheme is refused by `new`
+                ContactScheme::Implicit | ContactScheme::Penalty => {
                     if slope > 0.0 {
                         stiffness.push((d, slope));
                     }
