@@ -45,11 +45,12 @@
 //! `d = n . (X_c + u_c) - height` and `S(d) = softmin_alpha(0, d)`, the implicit scheme
 //! contributes `L_c = dt Lambda (-k S(d) - theta k S'(d) n . (u'_c - u_c))`, the thesis'
 //! explicit scheme `L_c = dt Lambda (-k S(d) - theta dt k S'(d) n . v_c)`, the penalty
-//! scheme (Newton-iterated, `k` the crossing's spring `k a_c`, `d'` at the converged `u'`)
-//! `L_c = -dt Lambda k ((1 - theta) S(d) + theta S(d'))`: its `u'` derivative is the contact
+//! scheme (Newton-iterated, `k` the crossing's spring `k a_c`, `d'` at the converged `u'`, `S`
+//! its C2 law [`cutfem::fem::collision::penalty0`]) `L_c = -dt Lambda k ((1 - theta) S(d) +
+//! theta S(d'))`: its `u'` derivative is the contact
 //! part of the Jacobian `A` at `u'`, which the backward solve already holds.
 
-use cutfem::fem::collision::{softmin0, softmin0_derivative, ContactScheme, Ground};
+use cutfem::fem::collision::{softmin0_derivative, ContactScheme, Ground};
 use cutfem::fem::element::ElementSet;
 use gpumat::{Mat3, Vec3};
 
@@ -199,13 +200,13 @@ pub fn contact_value(
     let n = g.normal;
     let d = n.dot(x0 + u) - g.height;
     let k = g.stiffness;
-    let (s, s1) = (softmin0(d, g.softness), softmin0_derivative(d, g.softness));
+    let (s, s1) = g.law(d);
     let force = match g.scheme {
         ContactScheme::Implicit => -k * s - theta * k * s1 * n.dot(u_next - u),
         ContactScheme::Thesis => -k * s - theta * dt * k * s1 * n.dot(v),
         ContactScheme::Penalty => {
             let d1 = n.dot(x0 + u_next) - g.height;
-            -k * ((1.0 - theta) * s + theta * softmin0(d1, g.softness))
+            -k * ((1.0 - theta) * s + theta * g.law(d1).0)
         }
     };
     dt * n.dot(lam) * force
@@ -226,18 +227,13 @@ pub fn contact_adjoint(
     let p = x0 + u;
     let d = n.dot(p) - g.height;
     let k = g.stiffness;
-    let alpha = g.softness;
-    let (s, s1, s2) = (
-        softmin0(d, alpha),
-        softmin0_derivative(d, alpha),
-        softmin0_second(d, alpha),
-    );
+    let (s, s1) = g.law(d);
     let big_l = n.dot(lam);
     if g.scheme == ContactScheme::Penalty {
         // L = dt Lambda (-k) ((1 - theta) S(d) + theta S(d')), d' at the converged u'
         let p1 = x0 + u_next;
         let d1 = n.dot(p1) - g.height;
-        let (s_1, s1_1) = (softmin0(d1, alpha), softmin0_derivative(d1, alpha));
+        let (s_1, s1_1) = g.law(d1);
         let inner = -k * ((1.0 - theta) * s + theta * s_1);
         let dl_dd = dt * big_l * (-k) * (1.0 - theta) * s1;
         let dl_dd1 = dt * big_l * (-k) * theta * s1_1;
@@ -251,6 +247,7 @@ pub fn contact_adjoint(
         };
     }
     // L = dt Lambda (-k S(d) - c(d) q) with q the scheme's rate term
+    let s2 = softmin0_second(d, g.softness);
     let (q_vec, coef) = match g.scheme {
         ContactScheme::Implicit | ContactScheme::Penalty => (u_next - u, theta * k),
         ContactScheme::Thesis => (v, theta * dt * k),

@@ -22,7 +22,8 @@
 //!   `1-t`, `t`), and its theta-weighted part `theta J u'` moves into the Newmark matrix:
 //!   `A += theta dt K_c`, `b += dt (f(u) - theta J u)`, `K_c = -J` (positive semi-definite).
 //!   Stable for stiff springs.
-//! * `Penalty`: a penalty per unit area, iterated to convergence within the step. The spring of
+//! * `Penalty`: a penalty per unit area, iterated to convergence within the step, with the C2
+//!   law [`penalty0`] in place of the softmin (no push before contact; `delta = 1 / alpha`). The spring of
 //!   a crossing stands for the part of the body's (rest) surface around it: a surface with unit
 //!   normal `m` crosses `|m|_1 / h^2` grid edges per unit area, so each crossing carries the
 //!   area `a_c = h^2 / |m|_1` (`m` the gradient of the cell's trilinear SDF at the crossing)
@@ -31,9 +32,10 @@
 //!   at the new state, `theta f(u') + (1 - theta) f(u)` (eq. 2.6.4), and `u'` is found by
 //!   Newton's method: each iteration linearizes `f` at the last iterate `u_l`
 //!   (`A += theta dt K_c(u_l)`, `b += dt ((1 - theta) f(u) + theta (f(u_l) + K_c(u_l) u_l))`)
-//!   and solves again, until no crossing's distance moves by more than
-//!   [`PENALTY_TOLERANCE`]` h`. Its first iteration is the `Implicit` step. A sharp law (large
-//!   `alpha`, little push before contact) is then stable at any time step; the adjoint
+//!   and solves again, until the linearization's error at the new iterate (its residual,
+//!   [`penalty_residual`]) is at most [`PENALTY_TOLERANCE`]` h`. Its first iteration is
+//!   linearized at `u` as the `Implicit` step is. A sharp law is then stable at any time
+//!   step; the adjoint
 //!   linearizes at the converged `u'` (implicit function theorem).
 
 use super::grid::Grid;
@@ -138,6 +140,50 @@ fn trilinear_gradient(phi: &[f64; 8], p: [f64; 3]) -> [f64; 3] {
     g
 }
 
+/// The penalty scheme's law `P(d)` (negative in contact, like `softmin_alpha(0, d)`): with
+/// the depth `x = -d` and `s = x / delta`, `delta = 1 / alpha`: zero for `x <= 0`,
+/// `-delta (s^3 - s^4 / 2)` over the first `delta` of penetration, `-(x - delta / 2)` beyond.
+/// Its slope is the smoothstep `3 s^2 - 2 s^3` (then 1): C2, no push before contact, the force
+/// linear in the depth past `delta`.
+pub fn penalty0(d: f64, alpha: f64) -> f64 {
+    let (x, delta) = (-d, 1.0 / alpha);
+    if x <= 0.0 {
+        0.0
+    } else if x < delta {
+        let s = x / delta;
+        -delta * s * s * s * (1.0 - 0.5 * s)
+    } else {
+        -(x - 0.5 * delta)
+    }
+}
+
+/// `d P(d) / dd` of [`penalty0`]: 0, `3 s^2 - 2 s^3`, 1.
+pub fn penalty0_derivative(d: f64, alpha: f64) -> f64 {
+    let (x, delta) = (-d, 1.0 / alpha);
+    if x <= 0.0 {
+        0.0
+    } else if x < delta {
+        let s = x / delta;
+        s * s * (3.0 - 2.0 * s)
+    } else {
+        1.0
+    }
+}
+
+impl Ground {
+    /// The contact law and its slope at distance `d`, `(S(d), S'(d))`: the softmin of the
+    /// implicit and thesis schemes, [`penalty0`] of the penalty scheme; the force on a crossing
+    /// is `-spring S(d) n`.
+    pub fn law(&self, d: f64) -> (f64, f64) {
+        match self.scheme {
+            ContactScheme::Penalty => (penalty0(d, self.softness), penalty0_derivative(d, self.softness)),
+            ContactScheme::Implicit | ContactScheme::Thesis => {
+                (softmin0(d, self.softness), softmin0_derivative(d, self.softness))
+            }
+        }
+    }
+}
+
 /// All surface crossings of grid edges between two active nodes, each edge once, in a fixed
 /// order, with the area each stands for (module docs).
 pub fn crossings(grid: &Grid) -> Vec<Crossing> {
@@ -232,8 +278,8 @@ pub fn add_ground_forces(
         let d = n.dot(x) - ground.height;
         let ddt = n.dot(vel);
         let k = ground.spring(c);
-        let f_now = -k * softmin0(d, ground.softness);
-        let slope = k * softmin0_derivative(d, ground.softness);
+        let (s0, s1) = ground.law(d);
+        let (f_now, slope) = (-k * s0, k * s1);
         let mag = match ground.scheme {
             ContactScheme::Thesis => {
                 let f_next = f_now + dt * (-slope * ddt);
@@ -248,8 +294,8 @@ pub fn add_ground_forces(
                 f_now + theta * slope * un
             }
             ContactScheme::Penalty => {
-                let f_l = -k * softmin0(dl, ground.softness);
-                let slope_l = k * softmin0_derivative(dl, ground.softness);
+                let (sl, sl1) = ground.law(dl);
+                let (f_l, slope_l) = (-k * sl, k * sl1);
                 if slope_l > 0.0 {
                     stiffness.push((*c, slope_l));
                 }
@@ -265,7 +311,7 @@ pub fn add_ground_forces(
 
 /// How far the Newton iterate `x` of a [`ContactScheme::Penalty`] step is from solving the
 /// step: the largest error of the contact law's linearization at `at` (the previous iterate)
-/// over the crossings, `|S(d_x) - S(d_l) - S'(d_l) (d_x - d_l)|` (a distance; the force error
+/// over the crossings, `|P(d_x) - P(d_l) - P'(d_l) (d_x - d_l)|` (a distance; the force error
 /// is the spring times it).
 pub fn penalty_residual(
     grid: &Grid,
@@ -275,15 +321,15 @@ pub fn penalty_residual(
     x: &Matrix<Vec3<f64>>,
 ) -> f64 {
     let (ls, xs) = (at.as_slice(), x.as_slice());
-    let (n, alpha) = (ground.normal, ground.softness);
+    let n = ground.normal;
     let mut worst = 0.0f64;
     for c in crossings {
         let (a, b, t) = (c.a as usize, c.b as usize, c.t);
         let x0 = grid.positions[a] * (1.0 - t) + grid.positions[b] * t;
         let dist = |s: &[Vec3<f64>]| n.dot(x0 + s[a] * (1.0 - t) + s[b] * t) - ground.height;
         let (dl, dx) = (dist(ls), dist(xs));
-        let lin = softmin0(dl, alpha) + softmin0_derivative(dl, alpha) * (dx - dl);
-        worst = worst.max((softmin0(dx, alpha) - lin).abs());
+        let ((sl, sl1), (sx, _)) = (ground.law(dl), ground.law(dx));
+        worst = worst.max((sx - sl - sl1 * (dx - dl)).abs());
     }
     worst
 }
