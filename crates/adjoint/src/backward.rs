@@ -26,8 +26,8 @@
 use crate::local::{
     cell_elastic_adjoint, contact_adjoint, deformation_gradient_adjoint, polar_rotation_adjoint,
 };
-use cutfem::fem::element::{corner_offsets, deformation_gradient_with, POLAR_ITERATIONS};
 use cutfem::fem::collision::Ground;
+use cutfem::fem::element::{corner_offsets, deformation_gradient_with, POLAR_ITERATIONS};
 use cutfem::fem::{NewmarkCoefficients, Simulation};
 use gpumat::{Mat3, Matrix, Vec3};
 use rayon::prelude::*;

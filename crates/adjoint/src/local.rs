@@ -46,8 +46,9 @@
 //! contributes `L_c = dt Lambda (-k S(d) - theta k S'(d) n . (u'_c - u_c))`, the thesis'
 //! explicit scheme `L_c = dt Lambda (-k S(d) - theta dt k S'(d) n . v_c)`, the penalty
 //! scheme (Newton-iterated, `k` the crossing's spring `k a_c`, `d'` at the converged `u'`, `S`
-//! its C2 law [`cutfem::fem::collision::penalty0`]) `L_c = -dt Lambda k ((1 - theta) S(d) +
-//! theta S(d'))`: its `u'` derivative is the contact
+//! its C2 law [`cutfem::fem::collision::penalty0`], `theta_c` its weight
+//! [`cutfem::fem::collision::Ground::contact_theta`]) `L_c = -dt Lambda k ((1 - theta_c) S(d) +
+//! theta_c S(d'))`: its `u'` derivative is the contact
 //! part of the Jacobian `A` at `u'`, which the backward solve already holds.
 
 use cutfem::fem::collision::{softmin0_derivative, ContactScheme, Ground};
@@ -206,7 +207,8 @@ pub fn contact_value(
         ContactScheme::Thesis => -k * s - theta * dt * k * s1 * n.dot(v),
         ContactScheme::Penalty => {
             let d1 = n.dot(x0 + u_next) - g.height;
-            -k * ((1.0 - theta) * s + theta * g.law(d1).0)
+            let tc = g.contact_theta(theta);
+            -k * ((1.0 - tc) * s + tc * g.law(d1).0)
         }
     };
     dt * n.dot(lam) * force
@@ -230,13 +232,14 @@ pub fn contact_adjoint(
     let (s, s1) = g.law(d);
     let big_l = n.dot(lam);
     if g.scheme == ContactScheme::Penalty {
-        // L = dt Lambda (-k) ((1 - theta) S(d) + theta S(d')), d' at the converged u'
+        // L = dt Lambda (-k) ((1 - theta_c) S(d) + theta_c S(d')), d' at the converged u'
         let p1 = x0 + u_next;
         let d1 = n.dot(p1) - g.height;
         let (s_1, s1_1) = g.law(d1);
-        let inner = -k * ((1.0 - theta) * s + theta * s_1);
-        let dl_dd = dt * big_l * (-k) * (1.0 - theta) * s1;
-        let dl_dd1 = dt * big_l * (-k) * theta * s1_1;
+        let tc = g.contact_theta(theta);
+        let inner = -k * ((1.0 - tc) * s + tc * s_1);
+        let dl_dd = dt * big_l * (-k) * (1.0 - tc) * s1;
+        let dl_dd1 = dt * big_l * (-k) * tc * s1_1;
         return ContactAdjoint {
             u: n * dl_dd,
             u_next: n * dl_dd1,

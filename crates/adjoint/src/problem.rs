@@ -293,14 +293,7 @@ impl Problem {
             let mut new_ub = cost_grad(self.cost.as_ref(), step, &self.sim.u)?;
             new_ub.assign_with(|u| u - vb.ex() * c);
             let mut new_vb = Matrix::eval(vb.ex() * -nm.cold);
-            step_adjoint(
-                &self.sim,
-                &u_next,
-                &lam,
-                &mut new_ub,
-                &mut new_vb,
-                &mut grad,
-            );
+            step_adjoint(&self.sim, &u_next, &lam, &mut new_ub, &mut new_vb, &mut grad);
             ub = new_ub;
             vb = new_vb;
             // free what the rest of the pass no longer needs

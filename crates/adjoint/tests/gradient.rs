@@ -581,7 +581,10 @@ fn penalty_contact_gradient_and_gauss_newton_match_finite_differences() {
         sim.solver.direct = true;
         (0..STEPS).map(|_| sim.step().unwrap().newton).sum::<usize>()
     };
-    assert!(newton > 0, "the penalty steps did no Newton iteration: no contact?");
+    assert!(
+        newton > 0,
+        "the penalty steps did no Newton iteration: no contact?"
+    );
     let observed = |r: &[Matrix<Vec3<f64>>]| DisplacementCost {
         reference: (2..=STEPS).step_by(2).map(|t| (t, 1.0, r[t].clone())).collect(),
     };

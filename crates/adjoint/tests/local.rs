@@ -106,7 +106,11 @@ fn cell_elastic_adjoint_matches_central_differences() {
 #[test]
 fn contact_adjoint_matches_central_differences() {
     let mut rng = Rng(3);
-    for scheme in [ContactScheme::Implicit, ContactScheme::Thesis, ContactScheme::Penalty] {
+    for scheme in [
+        ContactScheme::Implicit,
+        ContactScheme::Thesis,
+        ContactScheme::Penalty,
+    ] {
         for trial in 0..20 {
             let g = Ground {
                 normal: (Vec3::new(0.0, 1.0, 0.0) + rng.vec() * 0.2),
@@ -185,7 +189,11 @@ fn small_sim(scheme: ContactScheme) -> Simulation {
             normal: Vec3::new(0.05, 1.0, -0.03),
             height: 0.16,
             // per unit area for the penalty scheme (about 1e3 per crossing here)
-            stiffness: if scheme == ContactScheme::Penalty { 3e5 } else { 1e3 },
+            stiffness: if scheme == ContactScheme::Penalty {
+                3e5
+            } else {
+                1e3
+            },
             softness: 60.0,
             scheme,
         }),
@@ -202,7 +210,11 @@ fn small_sim(scheme: ContactScheme) -> Simulation {
 
 #[test]
 fn step_adjoint_matches_central_differences() {
-    for scheme in [ContactScheme::Implicit, ContactScheme::Thesis, ContactScheme::Penalty] {
+    for scheme in [
+        ContactScheme::Implicit,
+        ContactScheme::Thesis,
+        ContactScheme::Penalty,
+    ] {
         let mut sim = small_sim(scheme);
         let n = sim.grid.dofs();
         let mut rng = Rng(4);

@@ -23,12 +23,18 @@ fn the_crossings_areas_sum_to_the_surface_area() {
         let grid = Grid::new(sdf).unwrap();
         let total: f64 = crossings(&grid).iter().map(|c| c.area).sum();
         let err = total / exact - 1.0;
-        eprintln!("sphere r = {r}, h = {h}: crossings' area {total:.5} for {exact:.5} ({:+.3}%)", 100.0 * err);
+        eprintln!(
+            "sphere r = {r}, h = {h}: crossings' area {total:.5} for {exact:.5} ({:+.3}%)",
+            100.0 * err
+        );
         errors.push(err.abs());
     }
     // (the count of crossings fluctuates with the sphere's position on the grid: the error
     // does not fall monotonically): within 3% at 3 cells per radius, 1% at 6 and 12
-    assert!(errors[0] < 0.03 && errors[1] < 0.01 && errors[2] < 0.01, "{errors:?}");
+    assert!(
+        errors[0] < 0.03 && errors[1] < 0.01 && errors[2] < 0.01,
+        "{errors:?}"
+    );
 
     // the lower face of a slab tilted about two axes, counted inside a disc in its plane
     let n = {

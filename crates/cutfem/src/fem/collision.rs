@@ -29,9 +29,11 @@
 //!   area `a_c = h^2 / |m|_1` (`m` the gradient of the cell's trilinear SDF at the crossing)
 //!   and its spring is `k a_c` with `k` the stiffness per unit area (pressure per unit
 //!   penetration): the contact's stiffness no longer depends on the grid. The force is taken
-//!   at the new state, `theta f(u') + (1 - theta) f(u)` (eq. 2.6.4), and `u'` is found by
-//!   Newton's method: each iteration linearizes `f` at the last iterate `u_l`
-//!   (`A += theta dt K_c(u_l)`, `b += dt ((1 - theta) f(u) + theta (f(u_l) + K_c(u_l) u_l))`)
+//!   at the new state alone, `f(u')` (backward Euler; the weight `theta_c = 1` of
+//!   [`Ground::contact_theta`] in place of eq. 2.6.4's `theta`: a spring that stiff has
+//!   oscillations no frame rate resolves, and the trapezoidal rule would keep them ringing),
+//!   and `u'` is found by Newton's method: each iteration linearizes `f` at the last iterate
+//!   `u_l` (`A += dt K_c(u_l)`, `b += dt (f(u_l) + K_c(u_l) u_l)`)
 //!   and solves again, until the linearization's error at the new iterate (its residual,
 //!   [`penalty_residual`]) is at most [`PENALTY_TOLERANCE`]` h`. Its first iteration is
 //!   linearized at `u` as the `Implicit` step is. A sharp law is then stable at any time
@@ -171,6 +173,16 @@ pub fn penalty0_derivative(d: f64, alpha: f64) -> f64 {
 }
 
 impl Ground {
+    /// The weight of the new state's contact force in a step, `theta_c`: the penalty scheme
+    /// takes the force at the new state alone (`1`, backward Euler: it damps the contact's
+    /// unresolved oscillations), the others the Newmark `theta`.
+    pub fn contact_theta(&self, theta: f64) -> f64 {
+        match self.scheme {
+            ContactScheme::Penalty => 1.0,
+            ContactScheme::Implicit | ContactScheme::Thesis => theta,
+        }
+    }
+
     /// The contact law and its slope at distance `d`, `(S(d), S'(d))`: the softmin of the
     /// implicit and thesis schemes, [`penalty0`] of the penalty scheme; the force on a crossing
     /// is `-spring S(d) n`.
@@ -267,15 +279,19 @@ pub fn add_ground_forces(
     let fs = f.as_mut_slice();
     for c in crossings {
         let (a, b, t) = (c.a as usize, c.b as usize, c.t);
-        let x0 = grid.positions[a] * (1.0 - t) + grid.positions[b] * t;
-        let x = x0 + us[a] * (1.0 - t) + us[b] * t;
+        let x = (grid.positions[a] + us[a]) * (1.0 - t) + (grid.positions[b] + us[b]) * t;
+        let vel = vs[a] * (1.0 - t) + vs[b] * t;
+        let d = n.dot(x) - ground.height;
+        // the linearization point (the penalty scheme's Newton iterate; else u itself)
         let ul = ls[a] * (1.0 - t) + ls[b] * t;
-        let dl = n.dot(x0 + ul) - ground.height;
+        let dl = if std::ptr::eq(ls, us) {
+            d
+        } else {
+            n.dot((grid.positions[a] + ls[a]) * (1.0 - t) + (grid.positions[b] + ls[b]) * t) - ground.height
+        };
         if dl < 0.0 {
             touching += 1;
         }
-        let vel = vs[a] * (1.0 - t) + vs[b] * t;
-        let d = n.dot(x) - ground.height;
         let ddt = n.dot(vel);
         let k = ground.spring(c);
         let (s0, s1) = ground.law(d);
@@ -299,7 +315,8 @@ pub fn add_ground_forces(
                 if slope_l > 0.0 {
                     stiffness.push((*c, slope_l));
                 }
-                (1.0 - theta) * f_now + theta * (f_l + slope_l * n.dot(ul))
+                let tc = ground.contact_theta(theta);
+                (1.0 - tc) * f_now + tc * (f_l + slope_l * n.dot(ul))
             }
         };
         let fv = n * mag;

@@ -427,7 +427,7 @@ impl Simulation {
             self.k.keep(k);
         }
         if let Some(ground) = &self.model.ground {
-            self.add_contact_stiffness(&contact, ground.normal, theta * dt);
+            self.add_contact_stiffness(&contact, ground.normal, ground.contact_theta(theta) * dt);
         }
         self.contact = contact;
         info.assembly_s += t2.elapsed().as_secs_f64();
