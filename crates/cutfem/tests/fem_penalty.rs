@@ -65,3 +65,49 @@ fn the_crossings_areas_sum_to_the_surface_area() {
     eprintln!("tilted face: crossings' area {total:.5} in a disc of {disc:.5}");
     assert!((total / disc - 1.0).abs() < 0.01, "{total} vs {disc}");
 }
+
+/// `[ground] scheme = "penalty"` reaches the model; a sphere dropped on that ground lands and
+/// the steps in contact iterate (Newton) to the tolerance; the tetrahedral baseline refuses
+/// the scheme with an error naming the key.
+#[test]
+fn the_penalty_scheme_from_a_scene_lands_a_sphere() {
+    let text =
+        "[body]\nresolution = 10\nshape = { kind = \"sphere\", center = [0.0, 0.35, 0.0], radius = 0.3 }\n\
+                [material]\nyoung = 2000.0\npoisson = 0.3\n\
+                [gravity]\nacceleration = [0.0, -10.0, 0.0]\n\
+                [ground]\nscheme = \"penalty\"\nstiffness = 4.0e6\nsoftness = 1.0e5\n\
+                [time]\ndt = 0.01\nsteps = 20\ntheta = 0.5\nsubsteps = 2\n\
+                [model]\neffects = [\"gravity\", \"ground\"]\n";
+    let scene = cutfem::scene::Scene::parse(text, std::path::Path::new("penalty.toml")).unwrap();
+    let mut sim = scene.build_simulation().unwrap();
+    let ground = sim.model.ground.expect("ground");
+    assert_eq!(ground.scheme, cutfem::fem::collision::ContactScheme::Penalty);
+    let (mut newton, mut contacts) = (0, 0);
+    for _ in 0..20 {
+        let info = sim.step().unwrap();
+        newton += info.newton;
+        contacts = contacts.max(info.contacts);
+    }
+    assert!(
+        contacts > 0 && newton > 0,
+        "contacts {contacts}, Newton iterations {newton}"
+    );
+    // the lowest crossing is above the ground but for the penalty's small depth
+    let lowest = sim
+        .crossings
+        .iter()
+        .map(|c| {
+            let (a, b, t) = (c.a as usize, c.b as usize, c.t);
+            ((sim.grid.positions[a] + sim.u.get(a, 0, 0)) * (1.0 - c.t)
+                + (sim.grid.positions[b] + sim.u.get(b, 0, 0)) * t)
+                .y
+        })
+        .fold(f64::INFINITY, f64::min);
+    assert!(lowest > -1e-3 && lowest < 0.05, "lowest surface point {lowest}");
+
+    let mesh = cutfem::fem::tet::TetMesh::from_grid(&sim.grid, &sim.model).unwrap();
+    let err = cutfem::fem::tet::TetSimulation::new(mesh, sim.model.clone())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("ground.scheme"), "{err}");
+}
