@@ -44,6 +44,9 @@ use super::grid::Grid;
 use gpumat::{Matrix, Vec3};
 use std::collections::BTreeSet;
 
+/// A vector per degree of freedom (displacement, velocity).
+type Field = Matrix<Vec3<f64>>;
+
 /// How the contact force is discretized in time (see the module docs); `[ground].scheme` of a
 /// scene, in lower case.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Deserialize)]
@@ -261,7 +264,7 @@ pub fn add_ground_forces(
     grid: &Grid,
     crossings: &[Crossing],
     ground: &Ground,
-    (u, v, at): (&Matrix<Vec3<f64>>, &Matrix<Vec3<f64>>, Option<&Matrix<Vec3<f64>>>),
+    (u, v, at): (&Field, &Field, Option<&Field>),
     dt: f64,
     theta: f64,
     f: &mut Matrix<Vec3<f64>>,
