@@ -516,6 +516,29 @@ fn a_frame_of_substeps_is_that_many_steps() {
     }
 }
 
+/// The Gauss-Newton matrix at `x` against central differences (step `eps`) of the adjoint
+/// gradient, each entry within 1e-5 of the larger of its two diagonal entries (at zero
+/// residual the Gauss-Newton matrix is the Hessian).
+fn assert_gauss_newton_is_the_fd_hessian(p: &mut Problem, x: &[f64], eps: f64) {
+    let n = x.len();
+    let h = p.gauss_newton_matrix(x).unwrap();
+    for b in 0..n {
+        let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
+        xp[b] += eps;
+        xm[b] -= eps;
+        let (gp, gm) = (p.gradient(&xp).unwrap().1, p.gradient(&xm).unwrap().1);
+        for a in 0..n {
+            let fd = (gp[a] - gm[a]) / (2.0 * eps);
+            let scale = h[a * n + a].abs().max(h[b * n + b].abs());
+            assert!(
+                (h[a * n + b] - fd).abs() <= 1e-5 * scale,
+                "H[{a}][{b}]: tangent {} vs fd {fd}",
+                h[a * n + b]
+            );
+        }
+    }
+}
+
 /// The adjoint gradient and the Gauss-Newton matrix run through every integrator step and
 /// read the cost at the frames only.
 #[test]
@@ -541,24 +564,7 @@ fn substep_gradient_and_gauss_newton_match_finite_differences() {
     // the cost reads frame f after f frames (2f steps), not after f steps
     let at_truth = p.evaluate(&x).unwrap().cost;
     assert!(at_truth <= 1e-24, "cost at the truth {at_truth}");
-    let n = x.len();
-    let h = p.gauss_newton_matrix(&x).unwrap();
-    let eps = 1e-4;
-    for b in 0..n {
-        let (mut xp, mut xm) = (x.clone(), x.clone());
-        xp[b] += eps;
-        xm[b] -= eps;
-        let (gp, gm) = (p.gradient(&xp).unwrap().1, p.gradient(&xm).unwrap().1);
-        for a in 0..n {
-            let fd = (gp[a] - gm[a]) / (2.0 * eps);
-            let scale = h[a * n + a].abs().max(h[b * n + b].abs());
-            assert!(
-                (h[a * n + b] - fd).abs() <= 1e-5 * scale,
-                "H[{a}][{b}]: tangent {} vs fd {fd}",
-                h[a * n + b]
-            );
-        }
-    }
+    assert_gauss_newton_is_the_fd_hessian(&mut p, &x, 1e-4);
 }
 
 /// The penalty contact (per unit area, Newton-iterated within each step) with a sharper law.
@@ -598,25 +604,8 @@ fn penalty_contact_gradient_and_gauss_newton_match_finite_differences() {
     let params = ParamSet::parse(&["young,poisson,gravity,ground"]).unwrap();
     let mut p = Problem::new(sim, params, Box::new(observed(&reference)), STEPS).unwrap();
     let x = p.x0();
-    let n = x.len();
-    let h = p.gauss_newton_matrix(&x).unwrap();
     // the sharp law's third derivatives need a small step: the difference quotients of H[7][7]
     // (height, height) at steps 1e-3 ... 1e-7 were 155.0, 165.12, 164.529, 164.52315,
     // 164.52309 against the tangent's 164.52311
-    let eps = 1e-6;
-    for b in 0..n {
-        let (mut xp, mut xm) = (x.clone(), x.clone());
-        xp[b] += eps;
-        xm[b] -= eps;
-        let (gp, gm) = (p.gradient(&xp).unwrap().1, p.gradient(&xm).unwrap().1);
-        for a in 0..n {
-            let fd = (gp[a] - gm[a]) / (2.0 * eps);
-            let scale = h[a * n + a].abs().max(h[b * n + b].abs());
-            assert!(
-                (h[a * n + b] - fd).abs() <= 1e-5 * scale,
-                "H[{a}][{b}]: tangent {} vs fd {fd}",
-                h[a * n + b]
-            );
-        }
-    }
+    assert_gauss_newton_is_the_fd_hessian(&mut p, &x, 1e-6);
 }
