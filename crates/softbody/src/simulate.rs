@@ -129,6 +129,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let mut iterations = Vec::with_capacity(steps);
     let mut max_residual: f64 = 0.0;
     let mut fallbacks = 0;
+    let mut newton = 0;
     for f in 1..=steps {
         let info = sim.step().map_err(|e| format!("step {f}: {e}"))?;
         assembly += info.assembly_s;
@@ -137,6 +138,7 @@ pub fn run(a: Args) -> Result<(), String> {
         iterations.push(info.iterations);
         max_residual = max_residual.max(info.residual);
         fallbacks += info.fallback as usize;
+        newton += info.newton;
         sim.check_finite().map_err(|e| format!("step {f}: {e}"))?;
         // sec. 4.4.5: diffuse into the empty band, advect the level set
         let t_adv = Instant::now();
@@ -205,7 +207,8 @@ pub fn run(a: Args) -> Result<(), String> {
         },
         "solver": {
             "iterations": iterations, "max_residual": max_residual, "fallbacks": fallbacks,
-            "preconditioner": sim.solver.preconditioner.name(), "factorizations": sim.factorizations()
+            "preconditioner": sim.solver.preconditioner.name(), "factorizations": sim.factorizations(),
+            "contact_newton_iterations": newton
         },
         "final": {"max_displacement": sim.max_displacement()},
         "files": {
