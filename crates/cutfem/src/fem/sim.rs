@@ -19,18 +19,17 @@
 //! computes it on first use. `A u' = b` is solved by preconditioned CG warm-started at
 //! `u + dt v` (4.4.18), falling back to a sparse Cholesky factorization when CG fails; the
 //! preconditioner (block-Jacobi, block IC(0) or a reused rest-state Cholesky factor) is chosen
-//! in [`SolverSettings`] (see [`super::solver`]).
+//! in [`SolverSettings`] (see [`super::solver`]). The contact stages (ground forces, their
+//! stiffness in `A`, the penalty scheme's Newton iteration) are in `sim/contact.rs`.
 
+mod contact;
 mod dirichlet;
 mod kept;
 
 pub use super::assembly::newmark_system;
 use super::assembly::{Assembler, CellWork, ElementBlocks, Material};
 use super::assembly::{StepCells, StepOutput, StepState};
-use super::collision::{
-    add_ground_forces, crossings, penalty_residual, ContactScheme, Crossing, PENALTY_MAX_ITERATIONS,
-    PENALTY_TOLERANCE,
-};
+use super::collision::{crossings, Crossing};
 use super::element::{BlockCache, POLAR_ITERATIONS};
 use super::grid::Grid;
 use super::model::Model;
@@ -314,35 +313,7 @@ impl Simulation {
         let dt = self.model.dt;
         let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);
         self.solve_step(&mut x, &mut info)?;
-        if let Some(g) = self.model.ground.filter(|g| g.scheme == ContactScheme::Penalty) {
-            // Newton on the contact (collision module docs): linearize at the last iterate
-            let tolerance = PENALTY_TOLERANCE * self.grid.h();
-            let mut at = self.u.clone();
-            for iteration in 1.. {
-                if penalty_residual(&self.grid, &self.crossings, &g, &at, &x) <= tolerance {
-                    break;
-                }
-                if iteration > PENALTY_MAX_ITERATIONS {
-                    self.contact_at = None;
-                    return Err(Error::Invalid(format!(
-                        "the penalty contact did not converge in {PENALTY_MAX_ITERATIONS} Newton \
-                         iterations at step {}; lower ground.softness ({}) or time.dt ({})",
-                        self.steps + 1,
-                        g.softness,
-                        self.model.dt
-                    )));
-                }
-                self.contact_at = Some(x.clone());
-                let more = self.assemble_system_with(false);
-                info.newton += 1;
-                info.assembly_s += more.assembly_s;
-                info.stiffness_s += more.stiffness_s;
-                info.collision_s += more.collision_s;
-                info.contacts = more.contacts;
-                self.solve_step(&mut x, &mut info)?;
-                at = self.contact_at.take().expect("set above");
-            }
-        }
+        self.newton_contact(&mut x, &mut info)?;
 
         // v' = (u' - u)/(theta dt) - (1-theta)/theta v, then u = u'
         self.model.newmark().update_velocity(&mut self.v, &x, &self.u);
@@ -366,14 +337,6 @@ impl Simulation {
         info.factor_s += si.factor_s;
         info.solve_s += t.elapsed().as_secs_f64();
         Ok(())
-    }
-
-    /// Where the next [`Simulation::assemble_system`] linearizes a
-    /// [`ContactScheme::Penalty`] contact: at `at` (the adjoint and tangent passes give the
-    /// step's converged `u'`, so that `A` is the Jacobian of the converged step); `None`: at
-    /// `u`. Other schemes ignore it; every step resets it.
-    pub fn linearize_contact_at(&mut self, at: Option<Matrix<Vec3<f64>>>) {
-        self.contact_at = at;
     }
 
     /// The scales of the current model and the parameters that dominate them
@@ -404,20 +367,7 @@ impl Simulation {
         info.assembly_s += t0.elapsed().as_secs_f64();
 
         let t1 = Instant::now();
-        let mut contact = std::mem::take(&mut self.contact);
-        contact.clear();
-        if let Some(ground) = &self.model.ground {
-            info.contacts = add_ground_forces(
-                &self.grid,
-                &self.crossings,
-                ground,
-                (&self.u, &self.v, self.contact_at.as_ref()),
-                dt,
-                theta,
-                &mut self.f,
-                &mut contact,
-            );
-        }
+        let contact = self.ground_forces(&mut info);
         info.collision_s = t1.elapsed().as_secs_f64();
 
         let t2 = Instant::now();
@@ -432,25 +382,6 @@ impl Simulation {
         self.contact = contact;
         info.assembly_s += t2.elapsed().as_secs_f64();
         info
-    }
-
-    /// Adds `scale * K_c` (the linearized contact stiffness of the crossings in `contact`, as
-    /// `(crossing, k softmin'(d))`) to the Newmark matrix, in the crossings' fixed order.
-    fn add_contact_stiffness(&mut self, contact: &[(Crossing, f64)], n: Vec3<f64>, scale: f64) {
-        let nn = n.outer(n);
-        let pattern = self.assembler.pattern().clone();
-        let values = self.a.batch_values_mut(0);
-        for &(c, slope) in contact {
-            let w = [(c.a, 1.0 - c.t), (c.b, c.t)];
-            for &(p, wp) in &w {
-                for &(q, wq) in &w {
-                    let k = pattern
-                        .find(p as usize, q as usize)
-                        .expect("crossing corners share a cell");
-                    values[k] = values[k] + nn * (scale * slope * wp * wq);
-                }
-            }
-        }
     }
 
     /// The static equilibrium `K u = f` of plain linear elasticity (no corotation, no ground,

@@ -1,0 +1,109 @@
+//! The ground-contact stages of a step ([`super::collision`], thesis sec. 2.8, Alg. 5.5): the
+//! contact forces added to `f`, their linearized stiffness added to the Newmark matrix `A`, and
+//! for [`ContactScheme::Penalty`] the Newton iteration that re-linearizes the contact at the
+//! last iterate `u'_k` until the linearization's error at `u'_{k+1}` is below
+//! [`PENALTY_TOLERANCE`]` h`:
+//!
+//! `A(u'_k) u'_{k+1} = b(u'_k)`, with `f_c(u') ~ f_c(u'_k) + K_c(u'_k) (u' - u'_k)`.
+//!
+//! The adjoint and tangent passes linearize at the converged `u'`
+//! ([`Simulation::linearize_contact_at`]): `A` is then the Jacobian of the converged step
+//! (implicit function theorem).
+
+use super::Simulation;
+use crate::error::Error;
+use crate::fem::collision::{
+    add_ground_forces, penalty_residual, ContactScheme, Crossing, PENALTY_MAX_ITERATIONS, PENALTY_TOLERANCE,
+};
+use crate::fem::step_info::StepInfo;
+use gpumat::{Matrix, Vec3};
+
+impl Simulation {
+    /// Where the next [`Simulation::assemble_system`] linearizes a
+    /// [`ContactScheme::Penalty`] contact: at `at` (the adjoint and tangent passes give the
+    /// step's converged `u'`, so that `A` is the Jacobian of the converged step); `None`: at
+    /// `u`. Other schemes ignore it; every step resets it.
+    pub fn linearize_contact_at(&mut self, at: Option<Matrix<Vec3<f64>>>) {
+        self.contact_at = at;
+    }
+
+    /// Adds the ground's forces at the current state to `f` and returns the crossings in
+    /// contact with their slopes `(crossing, k softmin'(d))`; counts them in `info`.
+    pub(super) fn ground_forces(&mut self, info: &mut StepInfo) -> Vec<(Crossing, f64)> {
+        let mut contact = std::mem::take(&mut self.contact);
+        contact.clear();
+        if let Some(ground) = &self.model.ground {
+            info.contacts = add_ground_forces(
+                &self.grid,
+                &self.crossings,
+                ground,
+                (&self.u, &self.v, self.contact_at.as_ref()),
+                self.model.dt,
+                self.model.theta,
+                &mut self.f,
+                &mut contact,
+            );
+        }
+        contact
+    }
+
+    /// Adds `scale * K_c` (the linearized contact stiffness of the crossings in `contact`, as
+    /// `(crossing, k softmin'(d))`) to the Newmark matrix, in the crossings' fixed order.
+    pub(super) fn add_contact_stiffness(&mut self, contact: &[(Crossing, f64)], n: Vec3<f64>, scale: f64) {
+        let nn = n.outer(n);
+        let pattern = self.assembler.pattern().clone();
+        let values = self.a.batch_values_mut(0);
+        for &(c, slope) in contact {
+            let w = [(c.a, 1.0 - c.t), (c.b, c.t)];
+            for &(p, wp) in &w {
+                for &(q, wq) in &w {
+                    let k = pattern
+                        .find(p as usize, q as usize)
+                        .expect("crossing corners share a cell");
+                    values[k] = values[k] + nn * (scale * slope * wp * wq);
+                }
+            }
+        }
+    }
+
+    /// Newton on a [`ContactScheme::Penalty`] contact (module docs), from the first solve's
+    /// `x`; nothing for the other schemes. Adds the extra assemblies and solves to `info`.
+    pub(super) fn newton_contact(
+        &mut self,
+        x: &mut Matrix<Vec3<f64>>,
+        info: &mut StepInfo,
+    ) -> Result<(), Error> {
+        let Some(g) = self.model.ground.filter(|g| g.scheme == ContactScheme::Penalty) else {
+            return Ok(());
+        };
+        let tolerance = PENALTY_TOLERANCE * self.grid.h();
+        let mut at = self.u.clone();
+        for iteration in 1.. {
+            if penalty_residual(&self.grid, &self.crossings, &g, &at, x) <= tolerance {
+                break;
+            }
+            if iteration > PENALTY_MAX_ITERATIONS {
+                self.contact_at = None;
+                return Err(Error::Invalid(format!(
+                    "the penalty contact did not converge in {PENALTY_MAX_ITERATIONS} Newton \
+                     iterations at step {}; lower ground.softness ({}) or time.dt ({})",
+                    self.steps + 1,
+                    g.softness,
+                    self.model.dt
+                )));
+            }
+            self.contact_at = Some(x.clone());
+            let more = self.assemble_system_with(false);
+            info.newton += 1;
+            info.assembly_s += more.assembly_s;
+            info.stiffness_s += more.stiffness_s;
+            info.collision_s += more.collision_s;
+            info.contacts = more.contacts;
+            self.solve_step(x, info)?;
+            if let Some(last) = self.contact_at.take() {
+                at = last;
+            }
+        }
+        Ok(())
+    }
+}
