@@ -19,6 +19,7 @@ pub mod effects;
 mod extensions;
 mod mesh_cache;
 mod numerics;
+mod write;
 
 pub use check::{check_steps, dedupe_prefixes, non_finite, quote, shorten_quotes, MAX_QUOTE, MAX_STEPS};
 pub use extensions::{Extension, SECTIONS};
@@ -28,7 +29,7 @@ pub use numerics::{NumericsSection, DEFAULT_SURFACE_SUBDIVISION, MAX_SURFACE_SUB
 use crate::error::Error;
 use crate::fem::{Aabb, Ground, Model};
 use gpumat::Vec3;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// The effect vocabulary.
@@ -42,7 +43,7 @@ pub const EFFECTS: [&str; 6] = [
 ];
 
 /// `[body]`
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct BodySection {
     /// thesis `.sdf` or `.npy` file
@@ -60,7 +61,7 @@ pub struct BodySection {
 }
 
 /// `[material]`
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSection {
     /// Young's modulus
@@ -76,7 +77,7 @@ fn one() -> f64 {
 }
 
 /// `[damping]`
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DampingSection {
     /// Rayleigh mass coefficient
@@ -88,7 +89,7 @@ pub struct DampingSection {
 }
 
 /// `[gravity]`
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct GravitySection {
     /// acceleration vector
@@ -96,7 +97,7 @@ pub struct GravitySection {
 }
 
 /// `[ground]`
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct GroundSection {
     /// normal (normalized on load)
@@ -131,7 +132,7 @@ fn ground_alpha() -> f64 {
 }
 
 /// `[[dirichlet]]`
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DirichletSection {
     /// lower corner
@@ -141,7 +142,7 @@ pub struct DirichletSection {
 }
 
 /// `[initial]`
-#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct InitialSection {
     /// linear velocity
@@ -153,7 +154,7 @@ pub struct InitialSection {
 }
 
 /// `[time]`
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct TimeSection {
     /// time between frames (the time step when `substeps` is 1)
@@ -194,7 +195,7 @@ impl Default for TimeSection {
 }
 
 /// `[model]`
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ModelSection {
     /// the effects the model includes
@@ -204,7 +205,7 @@ pub struct ModelSection {
 }
 
 /// `[model].stiffness_field`
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct StiffnessFieldSection {
     /// coarse cells per axis
@@ -213,7 +214,7 @@ pub struct StiffnessFieldSection {
 
 /// A parsed scene file. Its top-level keys are checked by [`Scene::parse`]: the core sections
 /// ([`SECTIONS`]) and extension tables ([`Scene::extensions`]).
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 pub struct Scene {
     /// the body
     pub body: BodySection,
@@ -226,7 +227,7 @@ pub struct Scene {
     /// ground
     pub ground: Option<GroundSection>,
     /// Dirichlet boxes
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub dirichlet: Vec<DirichletSection>,
     /// initial motion
     pub initial: Option<InitialSection>,
@@ -237,8 +238,8 @@ pub struct Scene {
     pub model: Option<ModelSection>,
     /// fitting defaults (read by the adjoint layer)
     pub fit: Option<toml::Value>,
-    /// numerics
-    #[serde(default)]
+    /// numerics (written only when not the defaults)
+    #[serde(default, skip_serializing_if = "NumericsSection::is_default")]
     pub numerics: NumericsSection,
     /// the scene file's folder (set on load)
     #[serde(skip)]

@@ -17,11 +17,11 @@
 
 use crate::v3::{dot, norm, sub};
 use crate::{Error, SdfGrid};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// An analytic solid (see the module docs for the distance formulas).
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum Shape {
     /// Axis-aligned box.

@@ -13,7 +13,7 @@
 use crate::diagnose::{print_text, run_job, Job};
 use adjoint::camera_file::CameraFile;
 use adjoint::cost::Robust;
-use adjoint::diagnosis::effects::effect;
+use adjoint::diagnosis::effects::write_back_all;
 use adjoint::diagnosis::history::{self, Entry};
 use adjoint::diagnosis::{add_and_refit, DiagnoseParams, Setup};
 use adjoint::observe::{synthesize, RigParams};
@@ -112,14 +112,13 @@ pub fn run(a: Args) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", cams_path.display()))?;
 
     // 2-3. the incomplete model: fit and diagnose
-    let model_text = format!("{BODY}{}", effects_line(&base_effects))
-        .replace("young = 2000.0", &format!("young = {}", START.0))
-        .replace("poisson = 0.3", &format!("poisson = {}", START.1));
     let model_path = out.join("model.toml");
-    std::fs::write(&model_path, &model_text).map_err(|e| format!("{}: {e}", model_path.display()))?;
+    let mut model = Scene::parse(&format!("{BODY}{}", effects_line(&base_effects)), &model_path)
+        .map_err(|e| e.to_string())?;
+    (model.material.young, model.material.poisson) = START;
+    model.write(&model_path).map_err(|e| e.to_string())?;
     let hist = history::history_path(&model_path);
     let _ = std::fs::remove_file(&hist);
-    let model = Scene::parse(&model_text, &model_path).map_err(|e| e.to_string())?;
     say("2. fitting the model as given (no ground) and 3. diagnosing it".into());
     let params = ParamSet::parse(&["young,poisson"])?;
     let (d, diag_json) = run_job(Job {
@@ -143,7 +142,6 @@ pub fn run(a: Args) -> Result<(), String> {
     let Some(missing) = d.missing_effect.clone() else {
         return Err(format!("the diagnosis found nothing missing: {}", d.verdict));
     };
-    let e = effect(&missing).ok_or_else(|| format!("unknown effect {missing}"))?;
     say(format!("4. adding `{missing}` and refitting"));
     let setup = Setup {
         observations: &obs,
@@ -156,16 +154,10 @@ pub fn run(a: Args) -> Result<(), String> {
     let refined = add_and_refit(&setup, &d, &missing, 15)?;
     let ev = refined.eval.clone();
     // the user's next scene file: the effect on, with its fitted values
-    let fixed_text = format!(
-        "{BODY}\n{}\n{}",
-        e.suggestion(&refined.model),
-        effects_line(&[&base_effects[..], &[missing.as_str()]].concat())
-    )
-    .replace("young = 2000.0", &format!("young = {}", refined.model.young))
-    .replace("poisson = 0.3", &format!("poisson = {}", refined.model.poisson));
     let fixed_path = out.join("model_fixed.toml");
-    std::fs::write(&fixed_path, &fixed_text).map_err(|e| format!("{}: {e}", fixed_path.display()))?;
-    Scene::parse(&fixed_text, &fixed_path).map_err(|e| e.to_string())?;
+    let mut fixed = refined.scene.clone();
+    write_back_all(&mut fixed, &refined.model);
+    fixed.write(&fixed_path).map_err(|e| e.to_string())?;
     let after_model = refined.model.clone();
     let after_values = refined.values.clone();
     let mut effects_after: Vec<String> = d.effects.clone();

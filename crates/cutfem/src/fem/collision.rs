@@ -49,7 +49,7 @@ type Field = Matrix<Vec3<f64>>;
 
 /// How the contact force is discretized in time (see the module docs); `[ground].scheme` of a
 /// scene, in lower case.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ContactScheme {
     /// linearized, implicit in the new displacement

@@ -253,7 +253,7 @@ pub const DEFAULT_NITSCHE_GAMMA: f64 = 20.0;
 
 /// How the Nitsche terms of the held surface are integrated (`[numerics] nitsche`; the
 /// formulas in [`crate::fem::sim::dirichlet`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum NitscheQuadrature {
     /// the thesis' (eq. 4.4.15-4.4.17): nodal weights `w_b(e, i)`, the traction at the

@@ -32,7 +32,7 @@ use std::time::Instant;
 
 /// The CG preconditioner of the step's linear solve (module docs); in a scene,
 /// `[numerics] preconditioner` by its [`Preconditioner::name`].
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Preconditioner {
     /// inverse 3x3 diagonal blocks, every step (the thesis')

@@ -1,9 +1,9 @@
 //! `[numerics]` (an extension section of the scene): solver and discretization constants.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// `[numerics]` (extension): solver and discretization constants.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct NumericsSection {
     /// how the Nitsche terms are integrated: "consistent" (default) or "thesis"
@@ -63,6 +63,13 @@ fn surface_subdivision() -> usize {
 /// Default `[numerics].surface_subdivision`: the surface from an SDF twice as fine as the grid
 /// (`docs/simulation.md`, "The observed surface").
 pub const DEFAULT_SURFACE_SUBDIVISION: usize = 2;
+impl NumericsSection {
+    /// True when every key has its default value.
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
 impl Default for NumericsSection {
     fn default() -> Self {
         Self {

@@ -64,7 +64,7 @@ use crate::{SdfGrid, TriMesh};
 use std::collections::{HashMap, HashSet};
 
 /// How the observed surface is extracted from the SDF (`[numerics] surface_method`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SurfaceMethod {
     /// marching cubes, every vertex on a grid edge ([`extract_surface`]; the thesis' surface)

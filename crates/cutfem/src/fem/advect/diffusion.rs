@@ -14,7 +14,7 @@ pub const DIFFUSION_DISTANCE: usize = 5;
 
 /// How the displacement is extended into the empty nodes (`[numerics] diffusion`:
 /// "harmonic" or "linear").
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum DisplacementExtension {
     /// The thesis: the 7-point Poisson equation `Delta u = 0` (graph Laplacian) with Neumann
