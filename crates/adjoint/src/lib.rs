@@ -13,7 +13,8 @@
 //!   Alg. 5.2 and the adjoint of the diffusion 5.5.2, Huber) and [`cost_mesh`] (distance to
 //!   the simulated surface mesh);
 //! * [`params`]: the interface's parameter vocabulary in unconstrained coordinates (log,
-//!   logistic, tilt angles, a coarse trilinear stiffness field);
+//!   logistic, tilt angles, a coarse trilinear stiffness field); a `ParamSet` is checked
+//!   against its model once into a [`params::Layout`], the one map between `x` and a model;
 //! * [`problem`]: forward pass storing `u, v` per step, backward pass recomputing `K`, `A`
 //!   and the contact forces (sec. 5.7); [`tangent`]: tangent-linear sensitivities and the
 //!   Gauss-Newton matrix;

@@ -17,7 +17,7 @@
 
 use crate::backward::{initial_velocity_adjoint, step_adjoint, PhysicalGradient};
 use crate::cost::{Cost, FrameCost};
-use crate::params::ParamSet;
+use crate::params::{Layout, ParamSet};
 use crate::Error;
 use cutfem::fem::{Model, Simulation};
 use gpumat::{Matrix, Vec3};
@@ -92,8 +92,8 @@ pub struct Problem {
     pub sim: Simulation,
     /// the model at the start (parameters not fitted keep these values)
     pub base: Model,
-    /// the fitted parameters
-    pub params: ParamSet,
+    /// the fitted parameters, checked against `base`
+    pub params: Layout,
     /// the cost
     pub cost: Box<dyn Cost>,
     /// number of simulated frames (each `model.substeps` integrator steps)
@@ -124,12 +124,10 @@ struct Trajectory {
 impl Problem {
     /// Sets up a problem. Errors when an observed frame lies beyond `steps` or a parameter
     /// needs an effect the model lacks. The external force's coefficient count is taken from
-    /// the model ([`ParamSet::resolve`]).
+    /// the model ([`ParamSet::layout`]).
     pub fn new(sim: Simulation, params: ParamSet, cost: Box<dyn Cost>, steps: usize) -> Result<Self, Error> {
         let base = sim.model.clone();
-        let mut params = params;
-        params.resolve(&base);
-        params.check(&base)?;
+        let params = params.layout(&base)?;
         if let Some(&last) = cost.frames().last() {
             if last > steps {
                 return Err(Error::Invalid(format!(

@@ -16,7 +16,9 @@
 //! text, DejaVu Sans); [`scene`] reads the TOML scene
 //! files of `docs/interface.md` and builds from them the one simulation every command runs
 //! ([`scene::Scene::build_simulation`]: grid, complete model with the forward half of every
-//! effect, [`scene::effects`], and the `[numerics]` solver settings). The Newmark coefficients live in [`fem::NewmarkCoefficients`],
+//! effect, [`scene::effects`], and the `[numerics]` solver settings) and writes them back
+//! ([`scene::Scene::write`]: a fitted scene is written from a `Scene` value, checked by reading
+//! it back). The Newmark coefficients live in [`fem::NewmarkCoefficients`],
 //! the `[f64; 3]` helpers in [`v3`].
 //!
 //! ```

@@ -9,7 +9,7 @@
 mod common;
 
 use common::*;
-use gpumat::{Mat3, Matrix, SparseMatrix, SparsityPattern, Vec3};
+use gpumat::{LinearOperator, Mat3, Matrix, SparseMatrix, SparsityPattern, Transposed, Vec3};
 use proptest::prelude::*;
 use std::sync::Arc;
 
@@ -88,6 +88,31 @@ fn naive_spmv(d: &[Vec<f64>], x: &Matrix<Vec3<f64>>, c: usize, b: usize, transpo
 
 proptest! {
     #![proptest_config(config())]
+
+    /// The operator's transpose: `<A x, y> = <x, A^T y>` per batch on a random non-symmetric
+    /// square BSR matrix, and [`Transposed`] swaps `apply` and `transpose_apply`.
+    #[test]
+    fn linear_operator_transpose_is_the_adjoint(seed in any::<u64>(), n in 1usize..9, nb in 1usize..3) {
+        let mut rng = Rand::new(seed);
+        let (a, _) = random_bsr(&mut rng, n, n, 0.6, nb);
+        let (x, y) = (random_vec3s(&mut rng, (n, 1, nb)), random_vec3s(&mut rng, (n, 1, nb)));
+        let (mut ax, mut aty) = (Matrix::zeros(n, 1, nb), Matrix::zeros(n, 1, nb));
+        a.apply(&x, &mut ax);
+        a.transpose_apply(&y, &mut aty);
+        let dot = |u: &Matrix<Vec3<f64>>, v: &Matrix<Vec3<f64>>, b: usize| -> f64 {
+            u.batch(b).iter().zip(v.batch(b)).map(|(p, q)| p.dot(*q)).sum()
+        };
+        for b in 0..nb {
+            let (l, r) = (dot(&ax, &y, b), dot(&x, &aty, b));
+            prop_assert!((l - r).abs() <= 1e-12 * (1.0 + l.abs()), "batch {}: {} vs {}", b, l, r);
+        }
+        let (mut t1, mut t2) = (Matrix::zeros(n, 1, nb), Matrix::zeros(n, 1, nb));
+        Transposed(&a).apply(&y, &mut t1);
+        Transposed(&a).transpose_apply(&x, &mut t2);
+        prop_assert_eq!(t1.as_slice(), aty.as_slice());
+        prop_assert_eq!(t2.as_slice(), ax.as_slice());
+        prop_assert_eq!(LinearOperator::<Vec3<f64>>::dim(&Transposed(&a)), n);
+    }
 
     #[test]
     fn bsr_spmv_matches_expanded_csr(

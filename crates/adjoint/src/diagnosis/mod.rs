@@ -231,7 +231,7 @@ pub fn diagnose(
         scene: fitted_scene.clone(),
         x,
         x_start: x0.clone(),
-        params: problem.params.clone(),
+        params: problem.params.set().clone(),
         eval,
     };
 

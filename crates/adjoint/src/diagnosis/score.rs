@@ -119,12 +119,14 @@ pub fn extended_problem_at(
     let base_set = ParamSet {
         params: base.params.params.clone(),
         field: problem.params.field.clone(),
-    };
+    }
+    .layout(&problem.base)?;
     base_set.apply(base.x, &mut problem.base);
     let extra_set = ParamSet {
         params: extra.to_vec(),
         field: problem.params.field.clone(),
-    };
+    }
+    .layout(&problem.base)?;
     let mut x0 = base.x.to_vec();
     if !extra.is_empty() {
         x0.extend(extra_set.to_x(&problem.base));

@@ -1,23 +1,69 @@
-//! A parameter set before a problem resolved it (no stiffness-field basis yet) is consistent:
-//! its labels, `to_x` and `apply` agree on the number of coordinates and nothing panics.
+//! A parameter set is checked against a model once ([`ParamSet::layout`]): a set whose model
+//! lacks what a parameter needs is refused with the scene key to add; a layout's labels,
+//! `to_x`, `apply`, `chain` and `x_scales` agree on the number of coordinates, and writing `x`
+//! into a model that lacks the ground or the external force puts the base's back.
 
 use super::*;
+use cutfem::fem::{ExternalForce, Ground};
 
 #[test]
-fn unresolved_stiffness_field_has_no_coordinates_and_does_not_panic() {
-    let set = ParamSet::parse(&["young,stiffness_field"]).unwrap();
-    assert!(set.field.is_none());
-    let mut model = Model::default();
-    assert_eq!(set.labels(), vec!["young".to_string()]);
-    assert_eq!(set.len(), 1);
-    let x = set.to_x(&model);
-    assert_eq!(x.len(), set.len());
-    set.apply(&[3000f64.ln()], &mut model);
-    assert!((model.young - 3000.0).abs() < 1e-9);
-    assert!(model.stiffness_scale.is_none());
-    let g = set.chain(&model, &PhysicalGradient::default());
-    assert_eq!(g.len(), set.len());
-    assert_eq!(set.x_scales(&model).len(), set.len());
-    assert_eq!(set.bounds(&x).len(), set.len());
-    assert_eq!(set.log_coordinates().len(), set.len());
+fn a_set_without_what_it_needs_is_refused_by_name() {
+    let model = Model::default();
+    let e = ParamSet::parse(&["young,stiffness_field"])
+        .unwrap()
+        .layout(&model)
+        .unwrap_err();
+    assert!(e.to_string().contains("[model].stiffness_field"), "{e}");
+    let e = ParamSet::parse(&["ground"]).unwrap().layout(&model).unwrap_err();
+    assert!(e.to_string().contains("[ground]"), "{e}");
+    let e = ParamSet::parse(&["external_force"])
+        .unwrap()
+        .layout(&model)
+        .unwrap_err();
+    assert!(e.to_string().contains("wind"), "{e}");
+}
+
+#[test]
+fn a_layout_agrees_with_itself_and_restores_the_base_parts() {
+    let mut base = Model::default();
+    base.ground = Some(Ground {
+        normal: Vec3::new(0.0, 1.0, 0.0),
+        height: -0.5,
+        stiffness: 123.0,
+        softness: 45.0,
+        scheme: Default::default(),
+    });
+    base.external_force = Some(ExternalForce {
+        basis: std::sync::Arc::new(vec![vec![Vec3::new(1.0, 0.0, 0.0)]; 2]),
+        coefficients: vec![0.5, -0.25],
+        labels: vec!["a".into(), "b".into()],
+    });
+    let layout = ParamSet::parse(&["young,ground,external_force"])
+        .unwrap()
+        .layout(&base)
+        .unwrap();
+    assert_eq!(layout.params[2], Param::ExternalForce(2));
+    let x = layout.to_x(&base);
+    assert_eq!(x.len(), layout.len());
+    assert_eq!(layout.labels().len(), 1 + 3 + 2);
+    assert_eq!(layout.x_scales(&base).len(), layout.len());
+    assert_eq!(
+        layout.chain(&base, &PhysicalGradient::default()).len(),
+        layout.len()
+    );
+    assert_eq!(layout.bounds(&x).len(), layout.len());
+    assert_eq!(layout.log_coordinates().len(), layout.len());
+    // a model without the ground and the force gets the base's back, moved by x
+    let mut bare = Model::default();
+    let mut moved = x.clone();
+    moved[3] = 0.75; // ground height
+    moved[5] = 2.0; // second force coefficient
+    layout.apply(&moved, &mut bare);
+    let g = bare.ground.unwrap();
+    assert_eq!((g.height, g.stiffness, g.softness), (0.75, 123.0, 45.0));
+    assert!((g.normal - Vec3::new(0.0, 1.0, 0.0)).norm() < 1e-15);
+    let f = bare.external_force.as_ref().unwrap();
+    assert_eq!(f.coefficients, vec![0.5, 2.0]);
+    assert_eq!(f.labels, vec!["a".to_string(), "b".to_string()]);
+    assert_eq!(layout.to_x(&bare), moved);
 }

@@ -27,6 +27,25 @@ pub trait LinearOperator<T: Scalar>: Sync {
     fn dim(&self) -> usize;
     /// `y = A x`, batch by batch.
     fn apply(&self, x: &Matrix<T>, y: &mut Matrix<T>);
+    /// `y = A^T x`, batch by batch (the adjoint method's operator: `A^T lambda = dJ/du`).
+    fn transpose_apply(&self, x: &Matrix<T>, y: &mut Matrix<T>);
+}
+
+/// The transpose of an operator as an operator (`apply` is the inner one's `transpose_apply`),
+/// e.g. to solve `A^T x = b` with [`cg`] when `A` is not symmetric.
+#[derive(Clone, Copy, Debug)]
+pub struct Transposed<'a, O>(pub &'a O);
+
+impl<T: Scalar, O: LinearOperator<T>> LinearOperator<T> for Transposed<'_, O> {
+    fn dim(&self) -> usize {
+        self.0.dim()
+    }
+    fn apply(&self, x: &Matrix<T>, y: &mut Matrix<T>) {
+        self.0.transpose_apply(x, y);
+    }
+    fn transpose_apply(&self, x: &Matrix<T>, y: &mut Matrix<T>) {
+        self.0.apply(x, y);
+    }
 }
 
 impl<M: Scalar + ScalarMul<T, Output = T>, T: Scalar> LinearOperator<T> for SparseMatrix<M> {
@@ -35,6 +54,9 @@ impl<M: Scalar + ScalarMul<T, Output = T>, T: Scalar> LinearOperator<T> for Spar
     }
     fn apply(&self, x: &Matrix<T>, y: &mut Matrix<T>) {
         y.assign(self * x);
+    }
+    fn transpose_apply(&self, x: &Matrix<T>, y: &mut Matrix<T>) {
+        y.assign(self.transpose_mul(x.ex()));
     }
 }
 
