@@ -25,19 +25,21 @@ fn a_set_without_what_it_needs_is_refused_by_name() {
 
 #[test]
 fn a_layout_agrees_with_itself_and_restores_the_base_parts() {
-    let mut base = Model::default();
-    base.ground = Some(Ground {
-        normal: Vec3::new(0.0, 1.0, 0.0),
-        height: -0.5,
-        stiffness: 123.0,
-        softness: 45.0,
-        scheme: Default::default(),
-    });
-    base.external_force = Some(ExternalForce {
-        basis: std::sync::Arc::new(vec![vec![Vec3::new(1.0, 0.0, 0.0)]; 2]),
-        coefficients: vec![0.5, -0.25],
-        labels: vec!["a".into(), "b".into()],
-    });
+    let base = Model {
+        ground: Some(Ground {
+            normal: Vec3::new(0.0, 1.0, 0.0),
+            height: -0.5,
+            stiffness: 123.0,
+            softness: 45.0,
+            scheme: Default::default(),
+        }),
+        external_force: Some(ExternalForce {
+            basis: std::sync::Arc::new(vec![vec![Vec3::new(1.0, 0.0, 0.0)]; 2]),
+            coefficients: vec![0.5, -0.25],
+            labels: vec!["a".into(), "b".into()],
+        }),
+        ..Model::default()
+    };
     let layout = ParamSet::parse(&["young,ground,external_force"])
         .unwrap()
         .layout(&base)
