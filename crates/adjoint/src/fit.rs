@@ -264,7 +264,7 @@ impl GaussNewtonObjective for FitObjective<'_> {
     }
 }
 
-/// Reads a physical parameter component by its label ([`ParamSet::values`]).
+/// Reads a physical parameter component by its label ([`crate::params::Layout::values`]).
 pub fn get_physical(model: &Model, label: &str) -> Option<f64> {
     physical_slot(&mut model.clone(), label).map(|v| *v)
 }
@@ -275,7 +275,7 @@ pub fn set_physical(model: &mut Model, label: &str, value: f64) -> bool {
 }
 
 /// The physical value labelled `label` in `model` (the labels of
-/// [`crate::params::ParamSet::values`]), to read or write; `None` when the model lacks it.
+/// [`crate::params::Layout::values`]), to read or write; `None` when the model lacks it.
 fn physical_slot<'m>(model: &'m mut Model, label: &str) -> Option<&'m mut f64> {
     fn lane<'v>(v: &'v mut Vec3<f64>, c: &str) -> Option<&'v mut f64> {
         match c {

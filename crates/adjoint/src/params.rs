@@ -54,7 +54,7 @@ pub enum Param {
     /// log factors of Young's modulus on the nodes of a coarse trilinear grid
     StiffnessField,
     /// the coefficients of the model's external force (linear), as many as its basis fields:
-    /// the count is taken from the model by [`ParamSet::resolve`] (0 until then, see
+    /// the count is taken from the model by [`ParamSet::layout`] (0 until then, see
     /// [`Param::EXTERNAL_FORCE`])
     ExternalForce(usize),
 }
@@ -98,7 +98,7 @@ impl Param {
         }
     }
     /// The names of its components (the external force's: `external_force[k]`; its reports use
-    /// the model's labels, e.g. `wind.x`, see [`ParamSet::values`]).
+    /// the model's labels, e.g. `wind.x`, see [`Layout::values`]).
     pub fn components(self) -> Vec<String> {
         let xyz = |p: &str| ["x", "y", "z"].iter().map(|c| format!("{p}.{c}")).collect();
         match self {
@@ -184,7 +184,7 @@ impl ParamSet {
             .iter()
             .flat_map(|p| match (p, &self.field) {
                 (Param::StiffnessField, Some(f)) => f.labels(),
-                // no basis yet (not resolved by a problem): no coefficients, as in `to_x`
+                // no basis yet (a set not checked into a layout): no coefficients
                 (Param::StiffnessField, None) => Vec::new(),
                 _ => p.components(),
             })

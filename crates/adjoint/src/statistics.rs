@@ -16,7 +16,7 @@
 //! reach of the surface (a point beyond it carries a constant cost and no sensitivity) with a
 //! positive weight (a point of weight 0 is not observed). `p` is the number of fitted
 //! coordinates. Standard errors of the reported quantities are `scale_k sqrt(Cov_kk)` with
-//! `scale_k = d quantity_k / d x_k` ([`crate::params::ParamSet::x_scales`]).
+//! `scale_k = d quantity_k / d x_k` ([`crate::params::Layout::x_scales`]).
 //!
 //! # What the weights mean (and what they cannot mean at the same time)
 //!
@@ -57,7 +57,7 @@ pub struct Uncertainty {
     pub std_errors: Vec<f64>,
     /// covariance of `x` (`n x n`, row-major)
     pub cov_x: Vec<f64>,
-    /// `d quantity / d x_k` ([`crate::params::ParamSet::x_scales`])
+    /// `d quantity / d x_k` ([`crate::params::Layout::x_scales`])
     pub scales: Vec<f64>,
     /// the residual variance `s^2 = r^T W r / (n - p)`
     pub residual_variance: f64,
@@ -68,7 +68,7 @@ pub struct Uncertainty {
 /// First-order standard errors of the fitted quantities at `x` (module docs): the covariance
 /// `s^2 H^{-1}` with the Gauss-Newton matrix `H = A^T W A` of the tangent-linear pass and the
 /// residual variance `s^2 = r^T W r / (n - p)` over the same points and weights as `H`, mapped
-/// to the reported quantities by [`crate::params::ParamSet::x_scales`]. `None` when `H` is
+/// to the reported quantities by [`crate::params::Layout::x_scales`]. `None` when `H` is
 /// singular (a parameter the data do not determine) or there are no more points than
 /// parameters.
 pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<Option<Uncertainty>, Error> {

@@ -9,7 +9,8 @@
 //! step's stage order: rotations, stiffness and forces ([`fem::assembly`], eq. 4.4.5-4.4.17),
 //! ground contact ([`fem::collision`], sec. 2.8), the Newmark system as two fused expressions
 //! and its PCG solve ([`fem::sim`], sec. 4.4.3-4.4.4). [`fem::advect`] extends the
-//! displacements and advects the level set (sec. 4.4.5); [`fem::tet`] is the tetrahedral
+//! displacements and advects the level set (sec. 4.4.5), after every frame of a
+//! [`fem::forward::ForwardRun`] (the run `softbody simulate` reports); [`fem::tet`] is the tetrahedral
 //! baseline of sec. 4.6. [`surface`] (marching cubes, or dual contouring that keeps sharp edges)
 //! and [`render`] turn states into PLY meshes and PNG pictures ([`render::raster`] is the one
 //! z-buffer of the workspace, also behind the virtual depth cameras; [`render::font`] the

@@ -1,7 +1,7 @@
 //! `softbody simulate SCENE [--out DIR] [--json]`: the forward run.
 
 use crate::progress;
-use cutfem::fem::advect::{advect, Diffusion, DIFFUSION_DISTANCE};
+use cutfem::fem::forward::ForwardRun;
 use cutfem::render::{render, Camera, Coloring, Ground, Image, RenderItem, RenderOptions};
 use cutfem::scene::Scene;
 use cutfem::sdf::NpyDtype;
@@ -77,6 +77,16 @@ pub fn picture(frames: &[(usize, TriMesh)], ground: Option<f64>) -> Image {
     Image::tile(&images, images.len().min(4))
 }
 
+/// The frames the picture shows: `n` (at most `steps + 1`) spread evenly over `0..=steps`.
+fn picked_frames(n: usize, steps: usize) -> Vec<usize> {
+    let n = n.min(steps + 1);
+    let mut v: Vec<usize> = (0..n)
+        .map(|i| if n == 1 { steps } else { i * steps / (n - 1) })
+        .collect();
+    v.dedup();
+    v
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<(), String> {
     let t_total = Instant::now();
@@ -100,19 +110,8 @@ pub fn run(a: Args) -> Result<(), String> {
         .grid
         .surface()
         .map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    let extension = scene.numerics.diffusion;
-    let band =
-        Diffusion::with_distance(&sim.grid, DIFFUSION_DISTANCE, extension).map_err(|e| e.to_string())?;
-    let mut advected = None;
-
-    let picks: Vec<usize> = {
-        let n = a.picture_frames.min(steps + 1);
-        let mut v: Vec<usize> = (0..n)
-            .map(|i| if n == 1 { steps } else { i * steps / (n - 1) })
-            .collect();
-        v.dedup();
-        v
-    };
+    let mut run = ForwardRun::new(&sim, scene.numerics.diffusion).map_err(|e| e.to_string())?;
+    let picks = picked_frames(a.picture_frames, steps);
     let mut shown = Vec::new();
     let write_frame = |f: usize, mesh: &TriMesh| -> Result<(), String> {
         let p = frames_dir.join(format!("{f:04}.ply"));
@@ -125,28 +124,8 @@ pub fn run(a: Args) -> Result<(), String> {
     }
 
     let pb = progress::bar(steps as u64, "simulate", a.json);
-    let (mut assembly, mut solve, mut collision, mut advection) = (0.0, 0.0, 0.0, 0.0);
-    let mut iterations = Vec::with_capacity(steps);
-    let mut max_residual: f64 = 0.0;
-    let mut fallbacks = 0;
-    let mut newton = 0;
     for f in 1..=steps {
-        let info = sim.step().map_err(|e| format!("step {f}: {e}"))?;
-        assembly += info.assembly_s;
-        solve += info.solve_s;
-        collision += info.collision_s;
-        iterations.push(info.iterations);
-        max_residual = max_residual.max(info.residual);
-        fallbacks += info.fallback as usize;
-        newton += info.newton;
-        sim.check_finite().map_err(|e| format!("step {f}: {e}"))?;
-        // sec. 4.4.5: diffuse into the empty band, advect the level set
-        let t_adv = Instant::now();
-        let u_band = band
-            .diffuse(&sim.u)
-            .map_err(|e| format!("step {f}: diffusion: {e}"))?;
-        advected = Some(advect(&sim.grid, &band, &u_band).map_err(|e| format!("step {f}: advection: {e}"))?);
-        advection += t_adv.elapsed().as_secs_f64();
+        run.frame(&mut sim, f).map_err(|e| e.to_string())?;
         let mesh = sim.grid.deformed(&surface, &sim.u);
         write_frame(f, &mesh)?;
         if picks.contains(&f) {
@@ -155,9 +134,15 @@ pub fn run(a: Args) -> Result<(), String> {
         pb.inc(1);
     }
     pb.finish_and_clear();
+    let ForwardRun {
+        band,
+        advected,
+        totals,
+    } = run;
+    let iterations = &totals.iterations;
 
+    // the picture draws a horizontal plane: the ground's height at the body
     let ground = sim.model.ground.map(|g| {
-        // the picture draws a horizontal plane; use the ground's height at the body
         if (g.normal.y - 1.0).abs() < 1e-9 {
             g.height
         } else {
@@ -202,13 +187,14 @@ pub fn run(a: Args) -> Result<(), String> {
         "mass": sim.total_mass(),
         "steps": steps,
         "seconds": {
-            "assembly": assembly, "solve": solve, "collision": collision, "advection": advection,
+            "assembly": totals.info.assembly_s, "solve": totals.info.solve_s,
+            "collision": totals.info.collision_s, "advection": totals.advection_s,
             "total": t_total.elapsed().as_secs_f64()
         },
         "solver": {
-            "iterations": iterations, "max_residual": max_residual, "fallbacks": fallbacks,
+            "iterations": iterations, "max_residual": totals.info.residual, "fallbacks": totals.fallbacks,
             "preconditioner": sim.solver.preconditioner.name(), "factorizations": sim.factorizations(),
-            "contact_newton_iterations": newton
+            "contact_newton_iterations": totals.info.newton
         },
         "final": {"max_displacement": sim.max_displacement()},
         "files": {

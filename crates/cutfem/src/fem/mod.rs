@@ -4,6 +4,7 @@ pub mod advect;
 pub mod assembly;
 pub mod collision;
 pub mod element;
+pub mod forward;
 pub mod grid;
 pub mod model;
 pub mod plausible;
