@@ -95,7 +95,7 @@ impl Layout {
 
     /// The unconstrained coordinates of the model's current values.
     pub fn to_x(&self, model: &Model) -> Vec<f64> {
-        let mut x = Vec::with_capacity(self.set.len());
+        let mut x = Vec::new();
         for s in &self.slots {
             match s {
                 Slot::Young => x.push(model.young.ln()),
@@ -202,7 +202,7 @@ impl Layout {
     /// The gradient with respect to `x` of a function whose physical gradient is `g`, at the
     /// model `model` (which must be `apply(x)`'s result).
     pub fn chain(&self, model: &Model, g: &PhysicalGradient) -> Vec<f64> {
-        let mut out = Vec::with_capacity(self.set.len());
+        let mut out = Vec::new();
         let (e, nu) = (model.young, model.poisson);
         for s in &self.slots {
             match s {
@@ -232,7 +232,7 @@ impl Layout {
     /// radians and height, the field's log factors). Standard errors in `x` times these are
     /// standard errors of the reported quantities (first order).
     pub fn x_scales(&self, model: &Model) -> Vec<f64> {
-        let mut out = Vec::with_capacity(self.set.len());
+        let mut out = Vec::new();
         for s in &self.slots {
             match s {
                 Slot::Young => out.push(model.young),
