@@ -36,6 +36,7 @@ pub mod expr;
 mod matrix;
 pub mod ops;
 mod product;
+pub mod raw;
 mod scalar;
 pub mod simd;
 pub mod solve;

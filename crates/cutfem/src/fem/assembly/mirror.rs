@@ -2,8 +2,8 @@
 //! mirrors above it: the assembly computes the blocks on and above the diagonal only (every
 //! element block satisfies `K_ji = K_ij^T`, rotated or not, and so do the Nitsche terms).
 
-use super::pipeline::Parts;
 use super::{for_each_item, Assembler, ROW_CHUNK};
+use gpumat::raw::SharedParts;
 use gpumat::Mat3;
 
 impl Assembler {
@@ -11,7 +11,7 @@ impl Assembler {
     pub(super) fn mirror_lower(&self, parallel: bool, k: &mut [Mat3<f64>]) {
         let n = self.pattern.rows();
         assert!(k.len() == self.pattern.nnz(), "cutfem: values of another pattern");
-        let kw = Parts::new(k);
+        let kw = SharedParts::new(k);
         let items: Vec<usize> = (0..n.div_ceil(ROW_CHUNK)).collect();
         for_each_item(parallel, items, |ci| {
             let rows = ci * ROW_CHUNK..((ci + 1) * ROW_CHUNK).min(n);
@@ -31,8 +31,8 @@ impl Assembler {
     pub(super) unsafe fn mirror_rows(
         &self,
         rows: std::ops::Range<usize>,
-        a: Parts<Mat3<f64>>,
-        k: Option<Parts<Mat3<f64>>>,
+        a: SharedParts<'_, Mat3<f64>>,
+        k: Option<SharedParts<'_, Mat3<f64>>>,
     ) {
         let rp = self.pattern.row_ptr();
         gpumat::simd::with_avx2(

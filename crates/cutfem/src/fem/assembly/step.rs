@@ -17,11 +17,11 @@
 
 use super::cells::{CellSweep, CellWork};
 use super::newmark::Coefficients;
-use super::pipeline::Parts;
 use super::{Assembler, Cells, ElementBlocks, Material, RowSink};
 use crate::fem::element::corner_offsets;
 use crate::fem::grid::Grid;
 use crate::fem::model::Model;
+use gpumat::raw::SharedParts;
 use gpumat::{Mat3, Matrix, Scalar, SparseMatrix, Vec3};
 use std::sync::Arc;
 
@@ -118,18 +118,21 @@ impl Assembler {
         let corotated = rotations.is_some();
         let rot = rotations.map(|r| {
             r.resize(nc, Mat3::default());
-            Parts::new(r)
+            SharedParts::new(r)
         });
-        let (rt, rhs) = (Parts::new(&mut work.rt), Parts::new(&mut work.rhs));
-        let a = Parts::new(out.a.batch_values_mut(0));
-        let k = out.k.map(|k| Parts::new(k.batch_values_mut(0)));
-        let (b, f) = (Parts::new(out.b.as_mut_slice()), Parts::new(out.f.as_mut_slice()));
+        let (rt, rhs) = (SharedParts::new(&mut work.rt), SharedParts::new(&mut work.rhs));
+        let a = SharedParts::new(out.a.batch_values_mut(0));
+        let k = out.k.map(|k| SharedParts::new(k.batch_values_mut(0)));
+        let (b, f) = (
+            SharedParts::new(out.b.as_mut_slice()),
+            SharedParts::new(out.f.as_mut_slice()),
+        );
         let rp = self.pattern.row_ptr();
         let units = &self.units;
-        units.run(units.count() >= PARALLEL_UNITS, |u, wait| {
+        let cell = |u: usize| {
             let cells = units.cells(u);
             // SAFETY: the cells of unit `u` are borrowed by this stage alone; the other units'
-            // stages read them only after `cells_done` below has published them.
+            // row stages read them only after this stage has finished (`Units::run`).
             unsafe {
                 sweep.run(
                     cells.start,
@@ -138,10 +141,11 @@ impl Assembler {
                     rhs.part_mut(cells.clone()),
                 );
             }
-            wait.cells_done();
+        };
+        let row = |u: usize| {
             let (rows, read) = (units.rows(u), units.cells_read_by_rows(u));
-            // SAFETY: the cells `read` belong to units whose cell stage is published (waited
-            // for above): no task writes them any more in this pass.
+            // SAFETY: the cells `read` belong to units whose cell stage has finished
+            // (`Units::run`): no task writes them any more in this pass.
             let (rt, rhs) = unsafe { (rt.part(read.clone()), rhs.part(read.clone())) };
             let cells = Cells {
                 grid,
@@ -163,8 +167,8 @@ impl Assembler {
             };
             let entries = rp[rows.start]..rp[rows.end];
             // SAFETY: the blocks, `b` and `f` of unit `u`'s rows are written by this stage
-            // alone; the other units read its blocks only after `rows_done` below has
-            // published them, and its own mirror stage runs after this borrow has ended.
+            // alone; the other units' mirror stages read its blocks only after this stage has
+            // finished (`Units::run`), and its own mirror stage runs after it.
             let sink = unsafe {
                 StepSink {
                     rows: &step_rows,
@@ -177,13 +181,13 @@ impl Assembler {
                     acc: Vec3::ZERO,
                 }
             };
-            self.upper_rows(&cells, rows.clone(), sink);
-            wait.rows_done();
-            // SAFETY: the blocks below the diagonal of unit `u`'s rows are written by this
-            // stage alone and read by no task; their mirrors lie in rows of units whose row
-            // stage is published (waited for above), which no task writes any more.
-            unsafe { self.mirror_rows(rows, a, k) };
-        });
+            self.upper_rows(&cells, rows, sink);
+        };
+        // SAFETY: the blocks below the diagonal of unit `u`'s rows are written by this stage
+        // alone and read by no task; their mirrors lie in rows of units whose row stage has
+        // finished (`Units::run`), which no task writes any more.
+        let mirror = |u: usize| unsafe { self.mirror_rows(units.rows(u), a, k) };
+        units.run(units.count() >= PARALLEL_UNITS, cell, row, mirror);
     }
 
     /// A step's last pass, after the external and ground forces have been added to `f`:
