@@ -17,12 +17,14 @@ mod build;
 mod check;
 pub mod effects;
 mod extensions;
+mod fit;
 mod mesh_cache;
 mod numerics;
 mod write;
 
 pub use check::{check_steps, dedupe_prefixes, non_finite, quote, shorten_quotes, MAX_QUOTE, MAX_STEPS};
 pub use extensions::{Extension, SECTIONS};
+pub use fit::FitSection;
 use mesh_cache::{mesh_cache_get, mesh_cache_put};
 pub use numerics::{NumericsSection, DEFAULT_SURFACE_SUBDIVISION, MAX_SURFACE_SUBDIVISION};
 
@@ -237,7 +239,7 @@ pub struct Scene {
     /// effects of the model
     pub model: Option<ModelSection>,
     /// fitting defaults (read by the adjoint layer)
-    pub fit: Option<toml::Value>,
+    pub fit: Option<FitSection>,
     /// numerics (written only when not the defaults)
     #[serde(default, skip_serializing_if = "NumericsSection::is_default")]
     pub numerics: NumericsSection,
@@ -274,6 +276,7 @@ impl Scene {
             Error::format(path, shorten_quotes(&format!("{at}{msg}")))
         };
         let table: toml::Table = text.parse().map_err(bad)?;
+        fit::check(table.get("fit")).map_err(|msg| Error::format(path, msg))?;
         let extensions = extensions::collect(text, table, path)?;
         let mut scene: Scene = toml::from_str(text).map_err(bad)?;
         scene.path = path.to_path_buf();

@@ -64,12 +64,65 @@ const GROUND: &str = "\n[ground]\nnormal = [0.0, 1.0, 0.0]\nheight = 0.2\n";
 /// The model's starting material (the truth: 2000, 0.3).
 const START: (f64, f64) = (3000.0, 0.25);
 
+/// The effects of the model the user starts with (the truth adds the ground).
+const BASE_EFFECTS: [&str; 3] = ["gravity", "corotation", "initial_velocity"];
+
 /// Depth noise of the cameras (world units; the torus is 1.4 wide).
 const NOISE: f64 = 0.002;
 
 fn effects_line(effects: &[&str]) -> String {
     let list: Vec<String> = effects.iter().map(|e| format!("\"{e}\"")).collect();
     format!("\n[model]\neffects = [{}]\n", list.join(", "))
+}
+
+/// The truth's scene (the model's effects and the ground), written to `out/truth.toml`.
+fn truth_scene(out: &std::path::Path) -> Result<Scene, String> {
+    let truth_text = format!(
+        "{BODY}{GROUND}{}",
+        effects_line(&[&BASE_EFFECTS[..], &["ground"]].concat())
+    );
+    let truth_path = out.join("truth.toml");
+    std::fs::write(&truth_path, &truth_text).map_err(|e| format!("{}: {e}", truth_path.display()))?;
+    Scene::parse(&truth_text, &truth_path).map_err(|e| e.to_string())
+}
+
+/// The before / after / truth rows of the demo's table.
+fn table(
+    d: &adjoint::diagnosis::Diagnosis,
+    rms_after: f64,
+    after_model: &cutfem::fem::Model,
+    truth_model: &cutfem::fem::Model,
+) -> Vec<(String, String, String, String)> {
+    let g = truth_model.ground.as_ref().expect("truth has a ground");
+    vec![
+        (
+            "rms".to_string(),
+            format!("{:.3e}", d.rms),
+            format!("{:.3e}", rms_after),
+            format!("noise floor {:.3e}", d.noise_floor),
+        ),
+        (
+            "young".into(),
+            format!("{:.1}", d.model.young),
+            format!("{:.1}", after_model.young),
+            "2000".into(),
+        ),
+        (
+            "poisson".into(),
+            format!("{:.4}", d.model.poisson),
+            format!("{:.4}", after_model.poisson),
+            "0.3".into(),
+        ),
+        (
+            "ground.height".into(),
+            "-".into(),
+            after_model
+                .ground
+                .as_ref()
+                .map_or("-".into(), |g| format!("{:.4}", g.height)),
+            format!("{}", g.height),
+        ),
+    ]
 }
 
 /// Runs the demo.
@@ -83,16 +136,9 @@ pub fn run(a: Args) -> Result<(), String> {
             crate::note!("{s}");
         }
     };
-    let base_effects = ["gravity", "corotation", "initial_velocity"];
 
     // 1. the truth and its observations
-    let truth_text = format!(
-        "{BODY}{GROUND}{}",
-        effects_line(&[&base_effects[..], &["ground"]].concat())
-    );
-    let truth_path = out.join("truth.toml");
-    std::fs::write(&truth_path, &truth_text).map_err(|e| format!("{}: {e}", truth_path.display()))?;
-    let truth = Scene::parse(&truth_text, &truth_path).map_err(|e| e.to_string())?;
+    let truth = truth_scene(&out)?;
     let rig = RigParams {
         cameras: 4,
         pixels: 48,
@@ -113,7 +159,7 @@ pub fn run(a: Args) -> Result<(), String> {
 
     // 2-3. the incomplete model: fit and diagnose
     let model_path = out.join("model.toml");
-    let mut model = Scene::parse(&format!("{BODY}{}", effects_line(&base_effects)), &model_path)
+    let mut model = Scene::parse(&format!("{BODY}{}", effects_line(&BASE_EFFECTS)), &model_path)
         .map_err(|e| e.to_string())?;
     (model.material.young, model.material.poisson) = START;
     model.write(&model_path).map_err(|e| e.to_string())?;
@@ -169,37 +215,7 @@ pub fn run(a: Args) -> Result<(), String> {
     crate::diagnose_report::write_history_picture(&out.join("history.png"), &entries)?;
 
     // 5. the table
-    let truth_model = truth.to_model();
-    let g = truth_model.ground.as_ref().expect("truth has a ground");
-    let rows = vec![
-        (
-            "rms".to_string(),
-            format!("{:.3e}", d.rms),
-            format!("{:.3e}", ev.rms()),
-            format!("noise floor {:.3e}", d.noise_floor),
-        ),
-        (
-            "young".into(),
-            format!("{:.1}", d.model.young),
-            format!("{:.1}", after_model.young),
-            "2000".into(),
-        ),
-        (
-            "poisson".into(),
-            format!("{:.4}", d.model.poisson),
-            format!("{:.4}", after_model.poisson),
-            "0.3".into(),
-        ),
-        (
-            "ground.height".into(),
-            "-".into(),
-            after_model
-                .ground
-                .as_ref()
-                .map_or("-".into(), |g| format!("{:.4}", g.height)),
-            format!("{}", g.height),
-        ),
-    ];
+    let rows = table(&d, ev.rms(), &after_model, &truth.to_model());
     let fall = d.rms / ev.rms().max(f64::MIN_POSITIVE);
     let mut summary = json!({
         "before": {"rms": d.rms, "effects": d.effects, "parameters": crate::fit::values_json(&d.fitted)},

@@ -11,10 +11,10 @@
 use crate::problem_args::{Loaded, ProblemArgs};
 use crate::progress;
 use adjoint::cost::Robust;
+use adjoint::diagnosis::history::{append, history_path, Entry};
 use adjoint::fit::{check_observations, scene_problem};
 use adjoint::optim::Optimizer;
 use adjoint::problem::Evaluation;
-use cutfem::scene::Scene;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -48,62 +48,6 @@ pub struct Args {
     pub json: bool,
 }
 
-/// The `[fit]` section of a scene.
-#[derive(Debug, Default)]
-pub struct FitSection {
-    /// parameters
-    pub parameters: Option<Vec<String>>,
-    /// optimizer
-    pub optimizer: Option<String>,
-    /// iterations
-    pub iterations: Option<usize>,
-}
-
-/// Reads `[fit]`; unknown keys and wrong types are errors naming the key.
-pub fn fit_section(scene: &Scene) -> Result<FitSection, String> {
-    let mut out = FitSection::default();
-    let Some(v) = &scene.fit else { return Ok(out) };
-    let file = scene.path.display();
-    let table = v
-        .as_table()
-        .ok_or_else(|| format!("{file}: [fit] must be a table"))?;
-    for (k, v) in table {
-        match k.as_str() {
-            "parameters" => {
-                let arr = v
-                    .as_array()
-                    .ok_or_else(|| format!("{file}: [fit].parameters must be a list of names"))?;
-                let names = arr
-                    .iter()
-                    .map(|s| s.as_str().map(str::to_string))
-                    .collect::<Option<Vec<_>>>()
-                    .ok_or_else(|| format!("{file}: [fit].parameters must be a list of names"))?;
-                out.parameters = Some(names);
-            }
-            "optimizer" => {
-                out.optimizer = Some(
-                    v.as_str()
-                        .ok_or_else(|| format!("{file}: [fit].optimizer must be a string"))?
-                        .to_string(),
-                )
-            }
-            "iterations" => {
-                let n = v
-                    .as_integer()
-                    .filter(|&n| n >= 0)
-                    .ok_or_else(|| format!("{file}: [fit].iterations must be a non-negative integer"))?;
-                out.iterations = Some(n as usize);
-            }
-            other => {
-                return Err(format!(
-                    "{file}: [fit].{other}: unknown key (known: parameters, optimizer, iterations)"
-                ))
-            }
-        }
-    }
-    Ok(out)
-}
-
 pub use adjoint::fit::session::values_json;
 use adjoint::fit::session::{run_logged, FitLog, LoggedFit};
 
@@ -115,6 +59,107 @@ pub fn per_frame_json(ev: &Evaluation) -> Value {
             .map(|f| json!({"frame": f.frame, "rms": f.rms(), "points": f.count, "outside": f.outside}))
             .collect(),
     )
+}
+
+/// The fit's settings: flags over `[fit]` over the defaults.
+struct Settings {
+    optimizer: Optimizer,
+    iterations: usize,
+    robust: Robust,
+}
+
+impl Settings {
+    fn new(args: &Args, section: &cutfem::scene::FitSection) -> Result<Self, String> {
+        let optimizer: Optimizer = args
+            .optimizer
+            .clone()
+            .or(section.optimizer.clone())
+            .unwrap_or_else(|| "lbfgs".into())
+            .parse()
+            .map_err(|e| format!("--optimizer: {e}"))?;
+        let robust = match args.huber {
+            Some(d) if d > 0.0 && d.is_finite() => Robust::Huber(d),
+            Some(d) => return Err(format!("--huber: the threshold must be positive, got {d}")),
+            None => Robust::Squared,
+        };
+        Ok(Self {
+            optimizer,
+            iterations: args.iterations.or(section.iterations).unwrap_or(30),
+            robust,
+        })
+    }
+}
+
+/// What a fit found, for its report.
+struct Outcome<'a> {
+    args: &'a Args,
+    optimizer: Optimizer,
+    initial: &'a [(String, f64)],
+    fitted: &'a [(String, f64)],
+    std_errors: Option<Vec<(String, f64)>>,
+    ev_initial: &'a Evaluation,
+    ev_final: &'a Evaluation,
+    history: &'a [Value],
+    info: &'a adjoint::optim::OptimInfo,
+}
+
+impl Outcome<'_> {
+    /// `fit.json` but for the discretisation check, the timing and the files.
+    fn json(&self) -> Value {
+        let (ev_initial, ev_final) = (self.ev_initial, self.ev_final);
+        json!({
+            "scene": self.args.problem.scene,
+            "observations": self.args.problem.observations,
+            "optimizer": self.optimizer.to_string(),
+            "parameters": values_json(self.fitted),
+            "initial_parameters": values_json(self.initial),
+            "standard_errors": self.std_errors.as_ref().map(|v| values_json(v)),
+            "cost": {"initial": ev_initial.cost, "final": ev_final.cost},
+            "rms": {"initial": ev_initial.rms(), "final": ev_final.rms()},
+            "iterations": self.history.len().saturating_sub(1),
+            "evaluations": self.info.evaluations,
+            "termination": self.info.termination.to_string(),
+            "converged": self.info.termination.is_converged(),
+            "per_frame": {"initial": per_frame_json(ev_initial), "final": per_frame_json(ev_final)},
+            "history": self.history,
+        })
+    }
+
+    /// The one-line summary of the text output.
+    fn line(&self) -> String {
+        format!(
+            "fit: {} after {} iterations ({}); rms {:.4e} -> {:.4e}",
+            self.fitted
+                .iter()
+                .map(|(k, v)| format!("{k}={v:.6}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+            self.history.len().saturating_sub(1),
+            self.info.termination,
+            self.ev_initial.rms(),
+            self.ev_final.rms()
+        )
+    }
+}
+
+/// The fitted model simulated at twice and half the resolution (`crate::refine_check`), its
+/// surface differences against the observations' noise floor.
+fn discretisation(
+    scene: &cutfem::scene::Scene,
+    problem: &adjoint::problem::Problem,
+    model: &cutfem::fem::Model,
+    obs: &adjoint::observations::Observations,
+    eyes: &[[f64; 3]],
+    quiet: bool,
+) -> Value {
+    let grid = &problem.sim.grid;
+    let noise = adjoint::diagnosis::residuals::noise_floor(obs, &[], eyes, 2.0 * grid.h());
+    let params = adjoint::refine::RefineParams {
+        steps: Some(problem.steps),
+        frames: Some(obs.frame_numbers()),
+        ..Default::default()
+    };
+    crate::refine_check::run(scene, grid, model, &params, Some(noise), quiet)
 }
 
 /// Runs `fit`.
@@ -129,19 +174,7 @@ pub fn run(args: Args) -> Result<(), String> {
         eyes,
         ..
     } = args.problem.load()?;
-    let optimizer: Optimizer = args
-        .optimizer
-        .clone()
-        .or(section.optimizer.clone())
-        .unwrap_or_else(|| "lbfgs".into())
-        .parse()
-        .map_err(|e| format!("--optimizer: {e}"))?;
-    let iterations = args.iterations.or(section.iterations).unwrap_or(30);
-    let robust = match args.huber {
-        Some(d) if d > 0.0 && d.is_finite() => Robust::Huber(d),
-        Some(d) => return Err(format!("--huber: the threshold must be positive, got {d}")),
-        None => Robust::Squared,
-    };
+    let settings = Settings::new(&args, &section)?;
     if obs.is_empty() {
         return Err(format!(
             "{}: no observed points",
@@ -154,13 +187,12 @@ pub fn run(args: Args) -> Result<(), String> {
         .unwrap_or_else(|| crate::simulate::default_out(&args.problem.scene, "fit"));
     let dir = crate::out_dir::OutDir::begin(&target)?;
     let out = dir.path().to_path_buf();
-    let log_path = out.join("fit.log");
 
     let mut problem = scene_problem(
         &scene,
         &obs,
-        params.clone(),
-        robust,
+        params,
+        settings.robust,
         args.problem.steps,
         kind,
         &eyes,
@@ -174,21 +206,22 @@ pub fn run(args: Args) -> Result<(), String> {
     // resume: continue from the last logged iteration (the earlier run's log: of a killed
     // run, else of the report)
     let mut x0 = x_start.clone();
-    let earlier = if args.resume {
-        dir.resume_file("fit.log")
-    } else {
-        None
-    };
-    let mut log = FitLog::begin(&log_path, earlier.as_deref(), &params.labels(), &mut x0)?;
+    let earlier = args.resume.then(|| dir.resume_file("fit.log")).flatten();
+    let mut log = FitLog::begin(
+        &out.join("fit.log"),
+        earlier.as_deref(),
+        &params.labels(),
+        &mut x0,
+    )?;
 
     // the start: rms per frame before fitting (and the observations' sanity)
     let ev_initial = check_observations(&mut problem, &obs, &args.problem.observations)?;
 
-    let bar = progress::bar(iterations as u64 + 1, "fit", args.json);
+    let bar = progress::bar(settings.iterations as u64 + 1, "fit", args.json);
     let fitted = run_logged(
         &mut problem,
-        optimizer,
-        iterations,
+        settings.optimizer,
+        settings.iterations,
         &x0,
         &mut log,
         |iteration, cost| {
@@ -211,24 +244,9 @@ pub fn run(args: Args) -> Result<(), String> {
     } else {
         None
     };
-    let std_errors: Option<Vec<(String, f64)>> = unc.as_ref().map(|u| {
-        u.labels
-            .iter()
-            .cloned()
-            .zip(u.std_errors.iter().copied())
-            .collect()
-    });
     // the discretisation share of the final rms, against the observations' noise floor
-    let discretisation = (!args.no_refine_check).then(|| {
-        let grid = &problem.sim.grid;
-        let noise = adjoint::diagnosis::residuals::noise_floor(&obs, &[], &eyes, 2.0 * grid.h());
-        let params = adjoint::refine::RefineParams {
-            steps: Some(problem.steps),
-            frames: Some(obs.frame_numbers()),
-            ..Default::default()
-        };
-        crate::refine_check::run(&scene, grid, &model, &params, Some(noise), args.json)
-    });
+    let discretisation =
+        (!args.no_refine_check).then(|| discretisation(&scene, &problem, &model, &obs, &eyes, args.json));
     let history = log.into_history();
     let mut files = crate::fit_report::write(&out, &history, &initial_values, &ev_initial, &ev_final)?;
     if let (Some(u), 2) = (&unc, x_best.len()) {
@@ -236,34 +254,26 @@ pub fn run(args: Args) -> Result<(), String> {
         crate::fit_report::uncertainty_picture(&path, u, &history)?;
         files["uncertainty"] = json!(path);
     }
-    let summary = json!({
-        "scene": args.problem.scene,
-        "observations": args.problem.observations,
-        "optimizer": optimizer.to_string(),
-        "parameters": values_json(&final_values),
-        "initial_parameters": values_json(&initial_values),
-        "standard_errors": std_errors.as_ref().map(|v| values_json(v)),
-        "cost": {"initial": ev_initial.cost, "final": ev_final.cost},
-        "rms": {"initial": ev_initial.rms(), "final": ev_final.rms()},
-        "iterations": history.len().saturating_sub(1),
-        "evaluations": info.evaluations,
-        "termination": info.termination.to_string(),
-        "converged": info.termination.is_converged(),
-        "per_frame": {"initial": per_frame_json(&ev_initial), "final": per_frame_json(&ev_final)},
-        "history": history,
-        "discretisation": discretisation,
-        "seconds": t0.elapsed().as_secs_f64(),
-        "out": out,
-        "files": files,
-    });
+    let outcome = Outcome {
+        args: &args,
+        optimizer: settings.optimizer,
+        initial: &initial_values,
+        fitted: &final_values,
+        std_errors: unc.map(|u| u.labels.into_iter().zip(u.std_errors).collect()),
+        ev_initial: &ev_initial,
+        ev_final: &ev_final,
+        history: &history,
+        info: &info,
+    };
+    let mut summary = outcome.json();
+    summary["discretisation"] = json!(discretisation);
+    summary["seconds"] = json!(t0.elapsed().as_secs_f64());
+    summary["out"] = json!(out);
+    summary["files"] = files;
     // the scene's history of models (`diagnose` plots the rms over them)
-    let effects = scene.effects();
-    let hist = adjoint::diagnosis::history::history_path(&args.problem.scene);
-    adjoint::diagnosis::history::append(
-        &hist,
-        &adjoint::diagnosis::history::Entry::now("fit", effects, final_values.clone(), ev_final.rms()),
-    )?;
-    let mut summary = summary;
+    let entry = Entry::now("fit", scene.effects(), final_values.clone(), ev_final.rms());
+    let hist = history_path(&args.problem.scene);
+    append(&hist, &entry)?;
     summary["history_file"] = json!(hist);
     dir.publish(&mut summary);
     let path = out.join("fit.json");
@@ -273,18 +283,7 @@ pub fn run(args: Args) -> Result<(), String> {
     if args.json {
         crate::output::print_json(&summary)?;
     } else {
-        crate::note!(
-            "fit: {} after {} iterations ({}); rms {:.4e} -> {:.4e}",
-            final_values
-                .iter()
-                .map(|(k, v)| format!("{k}={v:.6}"))
-                .collect::<Vec<_>>()
-                .join(" "),
-            summary["iterations"],
-            info.termination,
-            ev_initial.rms(),
-            ev_final.rms()
-        );
+        crate::note!("{}", outcome.line());
         crate::note!("report: {}", target.display());
     }
     Ok(())

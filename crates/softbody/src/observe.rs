@@ -13,11 +13,11 @@
 
 use crate::progress;
 use crate::simulate::default_out;
-use adjoint::observe::{observe_run, render_depth, DepthCamera, RigParams};
+use adjoint::observe::{observe_run, render_depth, DepthCamera, ObservationRun, RigParams};
 use cutfem::render::{viridis, Image};
 use cutfem::scene::Scene;
 use cutfem::TriMesh;
-use serde_json::json;
+use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -134,9 +134,8 @@ fn preview(mesh: &TriMesh, cameras: &[DepthCamera], frame: usize) -> Image {
     Image::tile(&tiles, tiles.len().min(4))
 }
 
-/// Runs the command.
-pub fn run(a: Args) -> Result<(), String> {
-    let t_total = Instant::now();
+/// The camera rig of the flags, checked (sizes a machine can hold; errors name the flag).
+fn rig(a: &Args) -> Result<RigParams, String> {
     if !(a.noise.is_finite() && a.noise >= 0.0) {
         return Err(format!(
             "--noise must be a non-negative number, found {}",
@@ -161,8 +160,12 @@ pub fn run(a: Args) -> Result<(), String> {
     // the messages start with the field's name; name the flag instead
     rig.validate()
         .map_err(|e| format!("--{}", e.to_string().replacen("fov_y", "fov", 1)))?;
-    let scene = Scene::load(&a.scene).map_err(|e| e.to_string())?;
-    let steps = crate::problem_args::steps(a.steps, &scene)?;
+    Ok(rig)
+}
+
+/// The observed frames (`--frames`, else every step; frame 0 first with
+/// `--include-reference`), checked against what an observation file holds.
+fn frames(a: &Args, steps: usize) -> Result<Vec<usize>, String> {
     let mut frames = match &a.frames {
         Some(s) => parse_frames(s, steps)?,
         None => (1..=steps).collect(),
@@ -170,9 +173,9 @@ pub fn run(a: Args) -> Result<(), String> {
     if a.include_reference && frames.first() != Some(&0) {
         frames.insert(0, 0);
     }
-    let Some(&last) = frames.last() else {
+    if frames.is_empty() {
         return Err("no frame to observe (steps is 0; add --include-reference for frame 0)".into());
-    };
+    }
     // what the points can take: every camera sees at most W x W points per frame
     let rays = (a.cameras as u128) * (a.pixels as u128).pow(2) * frames.len() as u128;
     if rays > MAX_POINTS as u128 {
@@ -184,10 +187,81 @@ pub fn run(a: Args) -> Result<(), String> {
             frames.len()
         ));
     }
-    let out = a
-        .out
+    Ok(frames)
+}
+
+/// The observation file: `--out`, else `out/<scene>-observe/observations.csv`.
+fn out_path(a: &Args) -> PathBuf {
+    a.out
         .clone()
-        .unwrap_or_else(|| default_out(&a.scene, "observe").join("observations.csv"));
+        .unwrap_or_else(|| default_out(&a.scene, "observe").join("observations.csv"))
+}
+
+/// `observe`'s JSON summary (`seconds.total` is set by the caller).
+fn summary(
+    a: &Args,
+    rig: &RigParams,
+    run: &ObservationRun,
+    frames: &[usize],
+    preview_path: Option<String>,
+) -> Value {
+    let (obs, cameras, target) = (&run.observations, &run.cameras, run.target);
+    let last = frames[frames.len() - 1];
+    let out = out_path(a);
+    let camera_file = adjoint::fit::cameras_path(&out).display().to_string();
+    let out = out.display().to_string();
+    let per_frame: Vec<usize> = frames.iter().map(|&f| obs.frame(f).len()).collect();
+    let mut per_camera = vec![0usize; cameras.len()];
+    for (_, pts) in obs.frames() {
+        for p in pts {
+            per_camera[p.camera.unwrap_or(0) as usize] += 1;
+        }
+    }
+    let poses: Vec<_> = cameras
+        .iter()
+        .zip(rig.angles())
+        .map(|(c, [theta, phi])| json!({"eye": c.camera.eye, "target": c.camera.target, "theta": theta, "phi": phi}))
+        .collect();
+    let min = per_frame.iter().copied().min().unwrap_or(0);
+    let max = per_frame.iter().copied().max().unwrap_or(0);
+    let mean = obs.len() as f64 / frames.len() as f64;
+    json!({
+        "scene": a.scene.display().to_string(),
+        "out": out,
+        "points": obs.len(),
+        "frames": frames.len(),
+        "first_frame": frames[0],
+        "last_frame": last,
+        "cameras": cameras.len(),
+        "camera_poses": poses,
+        "target": target,
+        "pixels": a.pixels,
+        "fov_degrees": a.fov,
+        "radius": a.radius,
+        "noise": a.noise,
+        "seed": a.seed,
+        "steps": last,
+        "points_per_frame": {"min": min, "max": max, "mean": mean},
+        "points_per_camera": per_camera,
+        "preview": preview_path,
+        "camera_file": camera_file,
+        "seconds": {
+            "simulation": run.simulation_s,
+            "observation": run.observation_s,
+            "total": 0.0
+        },
+    })
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<(), String> {
+    let t_total = Instant::now();
+    let rig = rig(&a)?;
+    let scene = Scene::load(&a.scene).map_err(|e| e.to_string())?;
+    let steps = crate::problem_args::steps(a.steps, &scene)?;
+    let frames = frames(&a, steps)?;
+    let last = frames[frames.len() - 1];
+    let out = out_path(&a);
     // the CSV, its camera file and the preview appear together at the end, or not at all
     // (`crate::out_dir`); an unwritable output fails here, before simulating
     let cams_path = adjoint::fit::cameras_path(&out);
@@ -201,7 +275,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let run = observe_run(&mut sim, &rig, a.noise, &frames, |_| pb.inc(1))
         .map_err(|e| format!("{}: {e}", a.scene.display()))?;
     pb.finish_and_clear();
-    let (obs, cameras, target) = (&run.observations, &run.cameras, run.target);
+    let (obs, cameras) = (&run.observations, &run.cameras);
     if obs.is_empty() {
         return Err(format!(
             "{}: the {} cameras saw no point of the body in the {} frames observed (radius {}, fov {} degrees, \
@@ -229,56 +303,20 @@ pub fn run(a: Args) -> Result<(), String> {
         }
         _ => None,
     };
-    let per_frame: Vec<usize> = frames.iter().map(|&f| obs.frame(f).len()).collect();
-    let mut per_camera = vec![0usize; cameras.len()];
-    for (_, pts) in obs.frames() {
-        for p in pts {
-            per_camera[p.camera.unwrap_or(0) as usize] += 1;
-        }
-    }
-    let poses: Vec<_> = cameras
-        .iter()
-        .zip(rig.angles())
-        .map(|(c, [theta, phi])| json!({"eye": c.camera.eye, "target": c.camera.target, "theta": theta, "phi": phi}))
-        .collect();
-    let min = per_frame.iter().copied().min().unwrap_or(0);
-    let max = per_frame.iter().copied().max().unwrap_or(0);
-    let mean = obs.len() as f64 / frames.len() as f64;
-    let summary = json!({
-        "scene": a.scene.display().to_string(),
-        "out": out.display().to_string(),
-        "points": obs.len(),
-        "frames": frames.len(),
-        "first_frame": frames[0],
-        "last_frame": last,
-        "cameras": cameras.len(),
-        "camera_poses": poses,
-        "target": target,
-        "pixels": a.pixels,
-        "fov_degrees": a.fov,
-        "radius": a.radius,
-        "noise": a.noise,
-        "seed": a.seed,
-        "steps": last,
-        "points_per_frame": {"min": min, "max": max, "mean": mean},
-        "points_per_camera": per_camera,
-        "preview": preview_path,
-        "camera_file": cams_path.display().to_string(),
-        "seconds": {
-            "simulation": run.simulation_s,
-            "observation": run.observation_s,
-            "total": t_total.elapsed().as_secs_f64()
-        },
-    });
+    let mut summary = summary(&a, &rig, &run, &frames, preview_path);
+    summary["seconds"]["total"] = json!(t_total.elapsed().as_secs_f64());
     files.commit()?;
     if a.json {
         crate::output::print_json(&summary)?;
     } else {
+        let ppf = &summary["points_per_frame"];
         crate::note!(
-            "observed {} points in {} frames ({min}..{max} per frame) with {} cameras of {}x{} pixels, \
+            "observed {} points in {} frames ({}..{} per frame) with {} cameras of {}x{} pixels, \
              noise {}, seed {}; written to {}",
             obs.len(),
             frames.len(),
+            ppf["min"],
+            ppf["max"],
             cameras.len(),
             a.pixels,
             a.pixels,

@@ -38,7 +38,7 @@ pub struct Loaded {
     /// the scene
     pub scene: Scene,
     /// its `[fit]` section
-    pub section: crate::fit::FitSection,
+    pub section: cutfem::scene::FitSection,
     /// the fitted parameters
     pub params: ParamSet,
     /// the residual
@@ -60,7 +60,7 @@ impl ProblemArgs {
     pub fn load(&self) -> Result<Loaded, String> {
         let scene = Scene::load(&self.scene).map_err(|e| e.to_string())?;
         let n_steps = steps(self.steps, &scene)?;
-        let section = crate::fit::fit_section(&scene)?;
+        let section = scene.fit.clone().unwrap_or_default();
         let names: Vec<String> = match (&self.params, &section.parameters) {
             (Some(p), _) => vec![p.clone()],
             (None, Some(p)) => p.clone(),

@@ -87,6 +87,38 @@ fn picked_frames(n: usize, steps: usize) -> Vec<usize> {
     v
 }
 
+/// The height of the horizontal plane the pictures draw for the ground, at the body.
+fn ground_line(model: &cutfem::fem::Model) -> Option<f64> {
+    model.ground.map(|g| {
+        if (g.normal.y - 1.0).abs() < 1e-9 {
+            g.height
+        } else {
+            g.height / g.normal.y.max(1e-9)
+        }
+    })
+}
+
+/// Writes the advected level set of the last frame (`final_advected.npy`) and its picture;
+/// returns their entry of the summary's `files`.
+fn write_advected(
+    out: &std::path::Path,
+    adv: &cutfem::SdfGrid,
+    steps: usize,
+    ground: Option<f64>,
+) -> Result<serde_json::Value, String> {
+    let npy = out.join("final_advected.npy");
+    adv.write_npy(&npy, NpyDtype::F32).map_err(|e| e.to_string())?;
+    let adv_png = out.join("final_advected.png");
+    let mesh = extract_surface(adv).mesh;
+    picture(&[(steps, mesh)], ground)
+        .save_png(&adv_png)
+        .map_err(|e| e.to_string())?;
+    Ok(json!({
+        "sdf_npy": npy.display().to_string(), "origin": adv.origin, "spacing": adv.spacing,
+        "dims": adv.dims, "picture": adv_png.display().to_string()
+    }))
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<(), String> {
     let t_total = Instant::now();
@@ -141,33 +173,16 @@ pub fn run(a: Args) -> Result<(), String> {
     } = run;
     let iterations = &totals.iterations;
 
-    // the picture draws a horizontal plane: the ground's height at the body
-    let ground = sim.model.ground.map(|g| {
-        if (g.normal.y - 1.0).abs() < 1e-9 {
-            g.height
-        } else {
-            g.height / g.normal.y.max(1e-9)
-        }
-    });
+    let ground = ground_line(&sim.model);
     let pic_path = out.join("picture.png");
     picture(&shown, ground)
         .save_png(&pic_path)
         .map_err(|e| e.to_string())?;
     // the advected level set of the last frame, as data and as a picture
-    let mut advected_files = serde_json::Value::Null;
-    if let Some(adv) = &advected {
-        let npy = out.join("final_advected.npy");
-        adv.write_npy(&npy, NpyDtype::F32).map_err(|e| e.to_string())?;
-        let adv_png = out.join("final_advected.png");
-        let mesh = extract_surface(adv).mesh;
-        picture(&[(steps, mesh)], ground)
-            .save_png(&adv_png)
-            .map_err(|e| e.to_string())?;
-        advected_files = json!({
-            "sdf_npy": npy.display().to_string(), "origin": adv.origin, "spacing": adv.spacing,
-            "dims": adv.dims, "picture": adv_png.display().to_string()
-        });
-    }
+    let advected_files = match &advected {
+        Some(adv) => write_advected(&out, adv, steps, ground)?,
+        None => serde_json::Value::Null,
+    };
 
     let refine = a.refine_check.then(|| {
         let params = adjoint::refine::RefineParams {

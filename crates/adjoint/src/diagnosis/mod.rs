@@ -247,29 +247,12 @@ pub fn diagnose(
         residuals::point_residuals(&mut problem.sim, model.clone(), steps, &cost, setup.observations)?;
     let h = problem.sim.grid.h();
     let noise_floor = residuals::noise_floor(setup.observations, setup.cameras, setup.eyes, 2.0 * h);
-    let mut frames: Vec<usize> = records.iter().map(|r| r.frame).collect();
-    frames.dedup();
-    let per_frame: Vec<(usize, f64, usize)> = frames
-        .iter()
-        .map(|&f| {
-            let (r, n) = residuals::rms(records.iter().filter(|r| r.frame == f));
-            (f, r, n)
-        })
-        .collect();
-    let mut cams: Vec<u32> = records.iter().filter_map(|r| r.camera).collect();
-    cams.sort_unstable();
-    cams.dedup();
-    let per_camera = cams
-        .iter()
-        .map(|&c| {
-            let (r, n) = residuals::rms(records.iter().filter(|r| r.camera == Some(c)));
-            (c, r, n)
-        })
-        .collect();
+    let (per_frame, per_camera) = (residuals_per_frame(&records), residuals_per_camera(&records));
     let verts: Vec<[f64; 3]> = cost.surface().mesh.vertices.clone();
     let centers = residuals::kmeans(&verts, settings.regions);
     let regions = residuals::regions(&records, &centers);
     let direction = residuals::direction(&records);
+    // the frame of the largest rms (the earliest of equals)
     let worst_frame = per_frame
         .iter()
         .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
@@ -282,51 +265,14 @@ pub fn diagnose(
         spacing: h,
         reference: &verts,
     };
-    let mut candidates: Vec<Candidate> = Vec::new();
-    for (i, e) in off.iter().enumerate() {
-        progress(&format!("score {}", e.name()), 2 + i, total);
-        candidates.push(score::probe(setup, &base, e.as_ref(), &data));
-    }
-    let n = records.len().max(1) as f64;
-    let rank = |c: &Candidate| c.score - c.params.len() as f64 * n.ln();
-    candidates.sort_by(|a, b| rank(b).total_cmp(&rank(a)).then(a.effect.cmp(&b.effect)));
-    // refit the candidates whose score beats the BIC penalty, best first
-    for i in 0..settings.refits.min(candidates.len()) {
-        if candidates[i].error.is_some() || rank(&candidates[i]) <= 0.0 {
-            continue;
-        }
-        // a candidate predicted far worse than one already confirmed cannot win
-        let best = candidates[..i]
-            .iter()
-            .filter_map(|c| c.rms_after)
-            .fold(f64::INFINITY, f64::min);
-        if candidates[i].predicted_rms > 2.0 * best {
-            continue;
-        }
-        progress(
-            &format!("refit with {}", candidates[i].effect),
-            2 + off.len() + i,
-            total,
-        );
-        let e = off
-            .iter()
-            .find(|e| e.name() == candidates[i].effect)
-            .expect("listed");
-        score::refit(
-            setup,
-            &base,
-            e.as_ref(),
-            &mut candidates[i],
-            settings.refit_iterations,
-        );
-    }
-    // refitted candidates by Delta BIC, then the rest by score
-    candidates.sort_by(|a, b| match (a.delta_bic, b.delta_bic) {
-        (Some(x), Some(y)) => x.total_cmp(&y),
-        (Some(_), None) => std::cmp::Ordering::Less,
-        (None, Some(_)) => std::cmp::Ordering::Greater,
-        (None, None) => rank(b).total_cmp(&rank(a)),
-    });
+    let search = Search {
+        setup,
+        base: &base,
+        off: &off,
+        settings,
+        points: records.len(),
+    };
+    let candidates = search.candidates(&data, progress, total);
     progress("verdict", total, total);
     let fails = rms > settings.fail_ratio * noise_floor;
     let missing = candidates.first().filter(|c| {
@@ -357,6 +303,97 @@ pub fn diagnose(
         base_x: base.x,
         base_x_start: base.x_start,
     })
+}
+
+/// The rms and point count of each observed frame: `(frame, rms, points)` in frame order.
+fn residuals_per_frame(records: &[PointResidual]) -> Vec<(usize, f64, usize)> {
+    let mut frames: Vec<usize> = records.iter().map(|r| r.frame).collect();
+    frames.dedup();
+    frames
+        .iter()
+        .map(|&f| {
+            let (r, n) = residuals::rms(records.iter().filter(|r| r.frame == f));
+            (f, r, n)
+        })
+        .collect()
+}
+
+/// The rms and point count of each camera: `(camera, rms, points)` in camera order.
+fn residuals_per_camera(records: &[PointResidual]) -> Vec<(u32, f64, usize)> {
+    let mut cams: Vec<u32> = records.iter().filter_map(|r| r.camera).collect();
+    cams.sort_unstable();
+    cams.dedup();
+    cams.iter()
+        .map(|&c| {
+            let (r, n) = residuals::rms(records.iter().filter(|r| r.camera == Some(c)));
+            (c, r, n)
+        })
+        .collect()
+}
+
+/// The search for the missing effect among those switched off.
+struct Search<'a> {
+    setup: &'a Setup<'a>,
+    base: &'a BaseFit,
+    off: &'a [Box<dyn Effect>],
+    settings: &'a DiagnoseParams,
+    /// the residual count (the BIC penalty per parameter is its log)
+    points: usize,
+}
+
+impl Search<'_> {
+    /// Probes every effect that is off (a score each), refits the best whose score beats the
+    /// BIC penalty, and returns the candidates: the refitted ones by Delta BIC, then the rest
+    /// by score.
+    fn candidates(&self, data: &DataContext<'_>, progress: Progress, total: usize) -> Vec<Candidate> {
+        let (setup, base, off, settings) = (self.setup, self.base, self.off, self.settings);
+        let mut candidates: Vec<Candidate> = Vec::new();
+        for (i, e) in off.iter().enumerate() {
+            progress(&format!("score {}", e.name()), 2 + i, total);
+            candidates.push(score::probe(setup, base, e.as_ref(), data));
+        }
+        let n = self.points.max(1) as f64;
+        let rank = |c: &Candidate| c.score - c.params.len() as f64 * n.ln();
+        candidates.sort_by(|a, b| rank(b).total_cmp(&rank(a)).then(a.effect.cmp(&b.effect)));
+        // refit the candidates whose score beats the BIC penalty, best first
+        for i in 0..settings.refits.min(candidates.len()) {
+            if candidates[i].error.is_some() || rank(&candidates[i]) <= 0.0 {
+                continue;
+            }
+            // a candidate predicted far worse than one already confirmed cannot win
+            let best = candidates[..i]
+                .iter()
+                .filter_map(|c| c.rms_after)
+                .fold(f64::INFINITY, f64::min);
+            if candidates[i].predicted_rms > 2.0 * best {
+                continue;
+            }
+            progress(
+                &format!("refit with {}", candidates[i].effect),
+                2 + off.len() + i,
+                total,
+            );
+            let e = off
+                .iter()
+                .find(|e| e.name() == candidates[i].effect)
+                .expect("listed");
+            score::refit(
+                setup,
+                base,
+                e.as_ref(),
+                &mut candidates[i],
+                settings.refit_iterations,
+            );
+        }
+        // refitted candidates by Delta BIC, then the rest by score
+        candidates.sort_by(|a, b| match (a.delta_bic, b.delta_bic) {
+            (Some(x), Some(y)) => x.total_cmp(&y),
+            (Some(_), None) => std::cmp::Ordering::Less,
+            (None, Some(_)) => std::cmp::Ordering::Greater,
+            (None, None) => rank(b).total_cmp(&rank(a)),
+        });
+        candidates
+    }
 }
 
 /// The verdict in plain words.

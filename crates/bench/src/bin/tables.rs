@@ -372,6 +372,63 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
     s
 }
 
+impl Tables {
+    /// The measured tables as JSON rows, by table id.
+    fn values(&self) -> serde_json::Map<String, Value> {
+        let mut tables = serde_json::Map::new();
+        if let Some(r) = &self.b1 {
+            tables.insert("B.1".into(), Value::Array(to_values(r)));
+        }
+        if let Some(r) = &self.b2 {
+            tables.insert("B.2".into(), Value::Array(to_values(r)));
+        }
+        if let Some(r) = &self.b3 {
+            tables.insert("B.3".into(), Value::Array(to_values(r)));
+        }
+        if let Some(r) = &self.b4 {
+            tables.insert("B.4".into(), Value::Array(to_values(r)));
+        }
+        if let Some(r) = &self.b5 {
+            tables.insert("B.5".into(), Value::Array(to_values(r)));
+        }
+        if let Some(r) = &self.b6 {
+            tables.insert("B.6".into(), Value::Array(to_values(r)));
+        }
+        if let Some(r) = &self.t52 {
+            tables.insert("5.2".into(), Value::Array(to_values(r)));
+        }
+        if let Some(r) = &self.d {
+            tables.insert("D".into(), Value::Array(to_values(r)));
+        }
+        tables
+    }
+}
+
+/// The notes every report carries (how the peers were built and run, what the columns mean).
+fn notes() -> Vec<String> {
+    vec![
+        "Eigen is built with -fopenmp: its SpMV (B.3) and the SpMV inside its CG (B.4, Lower|Upper) \
+         run on all cores; its dense vector expressions (B.1, B.2, CG vector updates) are single-threaded \
+         (Eigen does not parallelise coefficient-wise operations). gpumat runs every pass on rayon."
+            .to_string(),
+        "B.1/B.2 Eigen evaluates into a preallocated vector (`d.noalias() = ...`), not `.eval()` into a \
+         fresh one as the thesis' code did; numpy evaluates `a0*v0 + a1*v1 + ...` with temporaries."
+            .to_string(),
+        "B.3 omits the thesis' g = 10000 row (10^8 unknowns; too large for this machine's memory budget)."
+            .to_string(),
+        "fraction_of_stream above 1 means the working set is partly cache-resident (B.1/B.2 at \
+         n <= 1e6: 4 MB per vector; B.2's k = 10 case moves 44 MB); the DRAM-bound rows are B.1 at \
+         n >= 1e7, B.3 and B.4 at g = 1000."
+            .to_string(),
+        "the B.2 fused-speedup goal (>= 3) is above the traffic ratio of the two variants (29/11 = 2.64 \
+         at k = 10), the most fusion can give to a bandwidth-bound CPU loop; the unfused passes also \
+         find their destination in cache, so the measured speedup is lower still. The thesis' large GPU \
+         gap came from per-call cuBLAS launch/synchronisation costs, which a CPU loop does not have."
+            .to_string(),
+        thesis::GPU_TIMING_CAVEAT.to_string(),
+    ]
+}
+
 fn main() {
     let args = Args::parse();
     if let (Some(csv), Some(steps)) = (&args.adjoint_memory_child, args.adjoint_memory_steps) {
@@ -455,53 +512,9 @@ fn main() {
     };
     let stream_gbs = stream_runs.iter().copied().fold(0.0, f64::max);
     progress(&format!("STREAM triad samples {stream_runs:.1?} GB/s"));
-    let mut tables = serde_json::Map::new();
-    if let Some(r) = &typed.b1 {
-        tables.insert("B.1".into(), Value::Array(to_values(r)));
-    }
-    if let Some(r) = &typed.b2 {
-        tables.insert("B.2".into(), Value::Array(to_values(r)));
-    }
-    if let Some(r) = &typed.b3 {
-        tables.insert("B.3".into(), Value::Array(to_values(r)));
-    }
-    if let Some(r) = &typed.b4 {
-        tables.insert("B.4".into(), Value::Array(to_values(r)));
-    }
-    if let Some(r) = &typed.b5 {
-        tables.insert("B.5".into(), Value::Array(to_values(r)));
-    }
-    if let Some(r) = &typed.b6 {
-        tables.insert("B.6".into(), Value::Array(to_values(r)));
-    }
-    if let Some(r) = &typed.t52 {
-        tables.insert("5.2".into(), Value::Array(to_values(r)));
-    }
-    if let Some(r) = &typed.d {
-        tables.insert("D".into(), Value::Array(to_values(r)));
-    }
+    let tables = typed.values();
 
-    let mut notes = vec![
-        "Eigen is built with -fopenmp: its SpMV (B.3) and the SpMV inside its CG (B.4, Lower|Upper) \
-         run on all cores; its dense vector expressions (B.1, B.2, CG vector updates) are single-threaded \
-         (Eigen does not parallelise coefficient-wise operations). gpumat runs every pass on rayon."
-            .to_string(),
-        "B.1/B.2 Eigen evaluates into a preallocated vector (`d.noalias() = ...`), not `.eval()` into a \
-         fresh one as the thesis' code did; numpy evaluates `a0*v0 + a1*v1 + ...` with temporaries."
-            .to_string(),
-        "B.3 omits the thesis' g = 10000 row (10^8 unknowns; too large for this machine's memory budget)."
-            .to_string(),
-        "fraction_of_stream above 1 means the working set is partly cache-resident (B.1/B.2 at \
-         n <= 1e6: 4 MB per vector; B.2's k = 10 case moves 44 MB); the DRAM-bound rows are B.1 at \
-         n >= 1e7, B.3 and B.4 at g = 1000."
-            .to_string(),
-        "the B.2 fused-speedup goal (>= 3) is above the traffic ratio of the two variants (29/11 = 2.64 \
-         at k = 10), the most fusion can give to a bandwidth-bound CPU loop; the unfused passes also \
-         find their destination in cache, so the measured speedup is lower still. The thesis' large GPU \
-         gap came from per-call cuBLAS launch/synchronisation costs, which a CPU loop does not have."
-            .to_string(),
-        thesis::GPU_TIMING_CAVEAT.to_string(),
-    ];
+    let mut notes = notes();
     if args.quick {
         notes.push("quick mode: B.1 stops at n = 1e7, B.4 at g = 300".into());
     }
