@@ -127,3 +127,58 @@ fn a_write_into_a_missing_folder_fails_with_the_path_and_leaves_nothing() {
     assert!(e.contains("no-such-folder"), "{e}");
     assert!(!target.parent().unwrap().exists());
 }
+
+/// `[fit]` is a typed section: read with its values, refused on load (by every command, not
+/// only `fit`) with an error naming the key, and written back.
+#[test]
+fn the_fit_section_is_typed_checked_on_load_and_written() {
+    let base = "[body]\nshape = { kind = \"sphere\", center = [0.0, 1.0, 0.0], radius = 0.3 }\n\
+                resolution = 10\n[material]\nyoung = 2000.0\npoisson = 0.3\ndensity = 1.0\n";
+    let path = Path::new("fit_section.toml");
+    let good = format!(
+        "{base}[fit]\nparameters = [\"young\", \"poisson\"]\noptimizer = \"gauss-newton\"\niterations = 7\n"
+    );
+    let s = Scene::parse(&good, path).unwrap();
+    let fit = s.fit.clone().unwrap();
+    assert_eq!(
+        fit.parameters.as_deref(),
+        Some(&["young".to_string(), "poisson".to_string()][..])
+    );
+    assert_eq!(
+        (fit.optimizer.as_deref(), fit.iterations),
+        (Some("gauss-newton"), Some(7))
+    );
+    let text = s.to_toml(path).unwrap();
+    assert!(
+        text.contains("[fit]") && text.contains("iterations = 7"),
+        "{text}"
+    );
+    assert_eq!(read(&text, path), read(&good, path));
+    for (section, needle) in [
+        (
+            "[fit]\niteration = 7\n",
+            "[fit].iteration: unknown key (known: parameters, optimizer, iterations)",
+        ),
+        (
+            "[fit]\nparameters = [1]\n",
+            "[fit].parameters must be a list of names",
+        ),
+        ("[fit]\noptimizer = 3\n", "[fit].optimizer must be a string"),
+        (
+            "[fit]\niterations = -1\n",
+            "[fit].iterations must be a non-negative integer",
+        ),
+        ("fit = 3\n", "[fit] must be a table"),
+    ] {
+        let text = if section.starts_with('[') {
+            format!("{base}{section}")
+        } else {
+            format!("{section}{base}")
+        };
+        let e = Scene::parse(&text, path).unwrap_err().to_string();
+        assert!(
+            e.contains(needle) && e.contains("fit_section.toml") && !e.contains('\n'),
+            "{e}"
+        );
+    }
+}

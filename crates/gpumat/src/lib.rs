@@ -5,7 +5,9 @@
 //! matrices on a shared pattern, batched preconditioned CG (Jacobi, block-Jacobi, block
 //! incomplete Cholesky IC(0)) and a direct sparse Cholesky (AMD or nested-dissection order).
 //! The CPU backend runs the fused loops on rayon; the CUDA backend is a later addition
-//! ([`backend`]).
+//! ([`backend`]). [`raw::SharedParts`] lends disjoint parts of one buffer to parallel tasks
+//! whose parts are not regular chunks (cutfem's step assembly); gpumat's `unsafe` lives in
+//! the backend modules and there.
 //!
 //! ```
 //! use gpumat::{Matrix, Axes};

@@ -82,6 +82,16 @@ impl<'a, T> SharedParts<'a, T> {
         );
     }
 
+    #[inline(always)]
+    #[track_caller]
+    fn check_at(&self, k: usize) {
+        assert!(
+            k < self.len,
+            "gpumat::raw: element {k} out of a buffer of {}",
+            self.len
+        );
+    }
+
     /// Part `r`, borrowed exclusively.
     ///
     /// # Safety
@@ -116,11 +126,7 @@ impl<'a, T> SharedParts<'a, T> {
     where
         T: Copy,
     {
-        assert!(
-            k < self.len,
-            "gpumat::raw: element {k} out of a buffer of {}",
-            self.len
-        );
+        self.check_at(k);
         // SAFETY: in bounds (checked), initialized (a slice's element), not written
         // concurrently (the caller's contract).
         unsafe { self.ptr.add(k).read() }
@@ -136,11 +142,7 @@ impl<'a, T> SharedParts<'a, T> {
     where
         T: Copy,
     {
-        assert!(
-            k < self.len,
-            "gpumat::raw: element {k} out of a buffer of {}",
-            self.len
-        );
+        self.check_at(k);
         // SAFETY: in bounds (checked) and exclusive (the caller's contract); `T: Copy` has no
         // destructor to skip.
         unsafe { self.ptr.add(k).write(v) }

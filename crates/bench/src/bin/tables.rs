@@ -77,12 +77,6 @@ struct Report<'a> {
     targets: &'a Value,
 }
 
-fn to_values<T: Serialize>(rows: &[T]) -> Vec<Value> {
-    rows.iter()
-        .map(|r| serde_json::to_value(r).expect("rows serialize"))
-        .collect()
-}
-
 /// The headline ratios (reported, never asserted).
 fn targets(tables: &serde_json::Map<String, Value>) -> Value {
     let find = |t: &str, key: &str, val: u64, field: &str| -> Value {
@@ -375,32 +369,10 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
 impl Tables {
     /// The measured tables as JSON rows, by table id.
     fn values(&self) -> serde_json::Map<String, Value> {
-        let mut tables = serde_json::Map::new();
-        if let Some(r) = &self.b1 {
-            tables.insert("B.1".into(), Value::Array(to_values(r)));
+        match serde_json::to_value(self).expect("tables serialize") {
+            Value::Object(m) => m,
+            _ => unreachable!("a struct serializes to an object"),
         }
-        if let Some(r) = &self.b2 {
-            tables.insert("B.2".into(), Value::Array(to_values(r)));
-        }
-        if let Some(r) = &self.b3 {
-            tables.insert("B.3".into(), Value::Array(to_values(r)));
-        }
-        if let Some(r) = &self.b4 {
-            tables.insert("B.4".into(), Value::Array(to_values(r)));
-        }
-        if let Some(r) = &self.b5 {
-            tables.insert("B.5".into(), Value::Array(to_values(r)));
-        }
-        if let Some(r) = &self.b6 {
-            tables.insert("B.6".into(), Value::Array(to_values(r)));
-        }
-        if let Some(r) = &self.t52 {
-            tables.insert("5.2".into(), Value::Array(to_values(r)));
-        }
-        if let Some(r) = &self.d {
-            tables.insert("D".into(), Value::Array(to_values(r)));
-        }
-        tables
     }
 }
 
