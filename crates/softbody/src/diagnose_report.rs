@@ -57,8 +57,10 @@ const VIEW: usize = 380;
 /// with a history), `candidates.png`.
 pub fn write_pictures(dir: &Path, d: &Diagnosis, inputs: &PictureInputs) -> Result<Vec<PathBuf>, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let rms_path = dir.join("rms_over_time.png");
+    crate::fit_report::save_charts(&[rms_over_time(d)], 1, &rms_path)?;
+    let mut out = vec![rms_path];
     let mut pictures = vec![
-        ("rms_over_time.png", rms_over_time(d)),
         ("surface_residual.png", surface_residual(d, inputs.reference)),
         ("worst_frame.png", worst_frame(d, inputs.worst)),
         ("residual_direction.png", residual_direction(d, inputs.gravity)),
@@ -67,7 +69,6 @@ pub fn write_pictures(dir: &Path, d: &Diagnosis, inputs: &PictureInputs) -> Resu
         pictures.push(("history.png", history(inputs.history)));
     }
     pictures.push(("candidates.png", candidates(d)));
-    let mut out = Vec::new();
     for (name, img) in pictures {
         let path = dir.join(name);
         img.save_png(&path)

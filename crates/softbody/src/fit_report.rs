@@ -1,13 +1,24 @@
 //! The pictures of a fit report: cost per iteration, each parameter per iteration, and the rms
 //! per frame before and after.
 
-use crate::plot::{grid_of, palette, Chart, Series, Style};
+use crate::plot::{grid_of, palette, svg_grid, Chart, Series, Style};
 use adjoint::problem::Evaluation;
 use serde_json::{json, Value};
 use std::path::Path;
 
-fn save(img: &cutfem::render::Image, path: &Path) -> Result<(), String> {
-    img.save_png(path).map_err(|e| format!("{}: {e}", path.display()))
+/// Writes `charts`, `columns` per row ([`grid_of`]; one chart alone as it is), as the PNG
+/// `path` and its SVG twin (`path` with the extension `svg`).
+pub fn save_charts(charts: &[Chart], columns: usize, path: &Path) -> Result<(), String> {
+    let (png, svg) = match charts {
+        [one] => (one.render(), one.render_svg()),
+        _ => (
+            grid_of(charts.iter().map(Chart::render).collect(), columns),
+            svg_grid(charts.iter().map(Chart::render_svg).collect(), columns),
+        ),
+    };
+    png.save_png(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    svg.save(&path.with_extension("svg"))
 }
 
 /// The rms-per-frame chart of two evaluations.
@@ -28,7 +39,8 @@ pub fn rms_chart(title: &str, before: (&str, &Evaluation), after: (&str, &Evalua
     }
 }
 
-/// Writes `cost.png`, `parameters.png` and `rms_per_frame.png`; returns their paths as JSON.
+/// Writes `cost.png`, `parameters.png` and `rms_per_frame.png` (each with its SVG twin);
+/// returns the PNGs' paths as JSON.
 pub fn write(
     dir: &Path,
     history: &[Value],
@@ -62,10 +74,7 @@ pub fn write(
         ..Chart::default()
     };
     let cost_path = dir.join("cost.png");
-    save(
-        &grid_of(vec![cost_chart.render(), rms_iter.render()], 2),
-        &cost_path,
-    )?;
+    save_charts(&[cost_chart, rms_iter], 2, &cost_path)?;
 
     let labels: Vec<String> = initial.iter().map(|(k, _)| k.clone()).collect();
     let mut charts = Vec::new();
@@ -74,35 +83,29 @@ pub fn write(
             .iter()
             .map(|h| (iter_of(h), h["parameters"][name].as_f64().unwrap_or(f64::NAN)))
             .collect();
-        charts.push(
-            Chart {
-                title: name.clone(),
-                x_label: "iteration".into(),
-                y_label: name.clone(),
-                series: vec![Series::new(name.clone(), pts, palette(i)).with_style(Style::LineMarkers)],
-                hlines: vec![(initial[i].1, "start".into(), [150, 150, 150])],
-                width: 480,
-                height: 320,
-                ..Chart::default()
-            }
-            .render(),
-        );
+        charts.push(Chart {
+            title: name.clone(),
+            x_label: "iteration".into(),
+            y_label: name.clone(),
+            series: vec![Series::new(name.clone(), pts, palette(i)).with_style(Style::LineMarkers)],
+            hlines: vec![(initial[i].1, "start".into(), [150, 150, 150])],
+            width: 480,
+            height: 320,
+            ..Chart::default()
+        });
     }
     let params_path = dir.join("parameters.png");
     if !charts.is_empty() {
         let cols = charts.len().min(3);
-        save(&grid_of(charts, cols), &params_path)?;
+        save_charts(&charts, cols, &params_path)?;
     }
     let rms_path = dir.join("rms_per_frame.png");
-    save(
-        &rms_chart(
-            "rms per frame, before and after the fit",
-            ("before (start)", ev_initial),
-            ("after (fitted)", ev_final),
-        )
-        .render(),
-        &rms_path,
-    )?;
+    let rms = rms_chart(
+        "rms per frame, before and after the fit",
+        ("before (start)", ev_initial),
+        ("after (fitted)", ev_final),
+    );
+    save_charts(&[rms], 1, &rms_path)?;
     Ok(
         json!({"cost": cost_path, "parameters": params_path, "rms_per_frame": rms_path,
               "log": dir.join("fit.log"), "summary": dir.join("fit.json")}),
@@ -172,5 +175,5 @@ pub fn uncertainty_picture(
         series: vec![Series::new("iterates", path_pts, palette(3)).with_style(Style::LineMarkers)],
         ..Chart::default()
     };
-    save(&grid_of(vec![chart.render(), path_chart.render()], 2), path)
+    save_charts(&[chart, path_chart], 2, path)
 }

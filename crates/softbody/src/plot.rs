@@ -4,14 +4,21 @@
 //! decade ticks on log axes, dashed reference lines, a legend, a title and axis labels;
 //! [`BarChart`] draws one bar per category. Non-finite values (and non-positive ones on a log
 //! axis) are skipped and break lines. Output is deterministic. Images are 640 x 400 by default.
+//! Every chart renders as a raster [`Image`] (`render`, saved as PNG) and as SVG
+//! (`render_svg`, the same picture as vector elements, [`canvas`]).
 
 pub mod axis;
+mod canvas;
 mod raster;
+#[cfg(test)]
+mod svg_tests;
 #[cfg(test)]
 mod tests;
 
 pub use axis::Axis;
 use axis::{fmt_compact, padded};
+pub use canvas::{svg_grid, Svg};
+use canvas::{Canvas, SvgCanvas};
 use cutfem::render::{Image, GLYPH_HEIGHT};
 use raster::{tw, Layer, Plot};
 
@@ -160,20 +167,36 @@ pub fn palette(i: usize) -> [u8; 3] {
 /// `images` on a white background, `columns` per row (at least 1), in equal cells as large as
 /// the largest image, images centred, 8 pixels apart. An empty list gives a 0 x 0 image.
 pub fn grid_of(images: Vec<Image>, columns: usize) -> Image {
-    const GAP: usize = 8;
-    if images.is_empty() {
-        return Image::new(0, 0, WHITE);
-    }
-    let cols = columns.clamp(1, images.len());
-    let rows = images.len().div_ceil(cols);
-    let cw = images.iter().map(|i| i.width).max().unwrap_or(0);
-    let ch = images.iter().map(|i| i.height).max().unwrap_or(0);
-    let mut out = Image::new(GAP + cols * (cw + GAP), GAP + rows * (ch + GAP), WHITE);
-    for (n, img) in images.iter().enumerate() {
-        let (x, y) = (GAP + (n % cols) * (cw + GAP), GAP + (n / cols) * (ch + GAP));
-        out.blit(img, x + (cw - img.width) / 2, y + (ch - img.height) / 2);
+    let sizes: Vec<(usize, usize)> = images.iter().map(|i| (i.width, i.height)).collect();
+    let (w, h, at) = grid_cells(&sizes, columns);
+    let mut out = Image::new(w, h, WHITE);
+    for (img, (x, y)) in images.iter().zip(at) {
+        out.blit(img, x, y);
     }
     out
+}
+
+/// The size of a grid of pictures of `sizes`, `columns` per row (at least 1), in equal cells
+/// as large as the largest, 8 pixels apart, and each picture's top-left corner (centred in
+/// its cell). No pictures: 0 x 0.
+fn grid_cells(sizes: &[(usize, usize)], columns: usize) -> (usize, usize, Vec<(usize, usize)>) {
+    const GAP: usize = 8;
+    if sizes.is_empty() {
+        return (0, 0, Vec::new());
+    }
+    let cols = columns.clamp(1, sizes.len());
+    let rows = sizes.len().div_ceil(cols);
+    let cw = sizes.iter().map(|s| s.0).max().unwrap_or(0);
+    let ch = sizes.iter().map(|s| s.1).max().unwrap_or(0);
+    let at = sizes
+        .iter()
+        .enumerate()
+        .map(|(n, &(w, h))| {
+            let (x, y) = (GAP + (n % cols) * (cw + GAP), GAP + (n / cols) * (ch + GAP));
+            (x + (cw - w) / 2, y + (ch - h) / 2)
+        })
+        .collect();
+    (GAP + cols * (cw + GAP), GAP + rows * (ch + GAP), at)
 }
 
 /// The text scale for an image of `w` x `h` pixels: 1 per 320 x 200, from 1 to 4.
@@ -216,7 +239,7 @@ fn layout(
 }
 
 /// Grid lines, frame, ticks and tick labels.
-fn draw_axes(img: &mut Image, p: &Plot, ya: &Axis, xa: Option<&Axis>) {
+fn draw_axes(img: &mut impl Canvas, p: &Plot, ya: &Axis, xa: Option<&Axis>) {
     let (pw, ph, tick, gap, s) = (p.x1 - p.x0, p.y1 - p.y0, 2 * p.s + 1, 3 * p.s, p.s);
     let lines = |a: &Axis| {
         let minor = a.minor.iter().map(|&v| (v, GRID_MINOR));
@@ -249,39 +272,50 @@ fn draw_axes(img: &mut Image, p: &Plot, ya: &Axis, xa: Option<&Axis>) {
         img.fill_rect(x, p.y1 + 1, 1, tick, FRAME);
         let x = x
             .saturating_sub(tw(label, s) / 2)
-            .min(img.width.saturating_sub(tw(label, s) + 1));
+            .min(img.image().width.saturating_sub(tw(label, s) + 1));
         img.draw_text(x, p.y1 + 1 + tick + gap, label, INK, s);
     }
 }
 
 /// Title centred on the image, x label under the plot, y label (rotated) left of it.
-fn draw_titles(img: &mut Image, p: &Plot, title: &str, x_label: &str, y_label: &str) {
+fn draw_titles(img: &mut impl Canvas, p: &Plot, title: &str, x_label: &str, y_label: &str) {
     let (s, pad) = (p.s, 4 * p.s);
-    let ts = if s >= 2 && tw(title, s + 1) + 2 * pad <= img.width {
+    let ts = if s >= 2 && tw(title, s + 1) + 2 * pad <= img.image().width {
         s + 1
     } else {
         s
     };
-    img.draw_text(img.width.saturating_sub(tw(title, ts)) / 2, pad, title, INK, ts);
+    img.draw_text(
+        img.image().width.saturating_sub(tw(title, ts)) / 2,
+        pad,
+        title,
+        INK,
+        ts,
+    );
     let (xc, yc) = ((p.x0 + p.x1) / 2, (p.y0 + p.y1) / 2);
-    let bottom = img.height.saturating_sub(pad + GLYPH_HEIGHT * s);
+    let bottom = img.image().height.saturating_sub(pad + GLYPH_HEIGHT * s);
     img.draw_text(xc.saturating_sub(tw(x_label, s) / 2), bottom, x_label, INK, s);
     img.draw_text_up(pad, yc.saturating_sub(tw(y_label, s) / 2), y_label, INK, s);
 }
 
 /// Dashed horizontal reference lines; returns their legend entries.
-fn hlines<'a>(img: &mut Image, p: &Plot, ya: &Axis, lines: &'a [(f64, String, [u8; 3])]) -> Vec<Entry<'a>> {
+fn hlines<'a>(
+    img: &mut impl Canvas,
+    p: &Plot,
+    ya: &Axis,
+    lines: &'a [(f64, String, [u8; 3])],
+) -> Vec<Entry<'a>> {
     for (y, color) in lines.iter().filter_map(|l| Some((p.py(ya.frac(l.0)?), l.2))) {
         let mut layer = Layer::new(p);
         let (hw, _, dash) = pens(p.s);
         layer.polyline(&[(p.x0 as f64, y), (p.x1 as f64, y)], 0.75 * hw, Some(dash));
-        layer.composite(img, color);
+        img.composite(&layer, color);
     }
     lines.iter().map(|h| (h.1.as_str(), h.2, Style::Dashed)).collect()
 }
 
 /// Draws mapped points (`None` breaks the line).
-fn draw_series(img: &mut Image, p: &Plot, pts: &[Option<Pt>], color: [u8; 3], style: Style) {
+fn draw_series(img: &mut impl Canvas, p: &Plot, pts: &[Option<Pt>], color: [u8; 3], style: Style) {
     let (hw, r, dash) = pens(p.s);
     let mut layer = Layer::new(p);
     for run in pts.split(|q| q.is_none()) {
@@ -302,12 +336,12 @@ fn draw_series(img: &mut Image, p: &Plot, pts: &[Option<Pt>], color: [u8; 3], st
             }
         }
     }
-    layer.composite(img, color);
+    img.composite(&layer, color);
 }
 
 /// A legend box (entries with empty labels left out) in the plot corner covering the fewest
 /// pixels drawn so far (other than background and grid).
-fn draw_legend(img: &mut Image, p: &Plot, entries: &[Entry]) {
+fn draw_legend(img: &mut impl Canvas, p: &Plot, entries: &[Entry]) {
     let entries: Vec<&Entry> = entries.iter().filter(|e| !e.0.is_empty()).collect();
     if entries.is_empty() {
         return;
@@ -323,11 +357,11 @@ fn draw_legend(img: &mut Image, p: &Plot, entries: &[Entry]) {
     let corners = [(xr, p.y0 + m), (p.x0 + m, p.y0 + m), (xr, yb), (p.x0 + m, yb)];
     let count = |&(x, y): &(usize, usize)| {
         let (xs, ys) = (
-            x.saturating_sub(2)..(x + bw + 2).min(img.width),
-            y.saturating_sub(2)..(y + bh + 2).min(img.height),
+            x.saturating_sub(2)..(x + bw + 2).min(img.image().width),
+            y.saturating_sub(2)..(y + bh + 2).min(img.image().height),
         );
         let all = ys.flat_map(|y| xs.clone().map(move |x| (x, y)));
-        all.filter(|&(x, y)| ![WHITE, GRID, GRID_MINOR].contains(&img.pixel(x, y)))
+        all.filter(|&(x, y)| ![WHITE, GRID, GRID_MINOR].contains(&img.image().pixel(x, y)))
             .count()
     };
     let (bx, by) = corners.iter().copied().min_by_key(count).unwrap_or(corners[0]);
@@ -384,21 +418,32 @@ impl Chart {
     /// legend (in the corner with the least data), title and axis labels.
     pub fn render(&self) -> Image {
         let mut img = Image::new(self.width, self.height, WHITE);
+        self.draw(&mut img);
+        img
+    }
+
+    /// The picture of [`Chart::render`] as SVG.
+    pub fn render_svg(&self) -> Svg {
+        let mut c = SvgCanvas::new(self.width, self.height, WHITE);
+        self.draw(&mut c);
+        c.finish()
+    }
+
+    fn draw(&self, img: &mut impl Canvas) {
         if self.width == 0 || self.height == 0 {
-            return img;
+            return;
         }
         let (p, [ya, xa]) = self.frame();
-        draw_axes(&mut img, &p, &ya, Some(&xa));
-        let refs = hlines(&mut img, &p, &ya, &self.hlines);
+        draw_axes(img, &p, &ya, Some(&xa));
+        let refs = hlines(img, &p, &ya, &self.hlines);
         for se in &self.series {
             let map = |&(x, y): &Pt| Some((p.px(xa.frac(x)?), p.py(ya.frac(y)?)));
             let pts: Vec<_> = se.points.iter().map(map).collect();
-            draw_series(&mut img, &p, &pts, se.color, se.style);
+            draw_series(img, &p, &pts, se.color, se.style);
         }
         let lines = self.series.iter().map(|e| (e.label.as_str(), e.color, e.style));
-        draw_legend(&mut img, &p, &lines.chain(refs).collect::<Vec<_>>());
-        draw_titles(&mut img, &p, &self.title, &self.x_label, &self.y_label);
-        img
+        draw_legend(img, &p, &lines.chain(refs).collect::<Vec<_>>());
+        draw_titles(img, &p, &self.title, &self.x_label, &self.y_label);
     }
 }
 
@@ -406,10 +451,22 @@ impl BarChart {
     /// Draws the bars (value labels on top, category labels below: smaller or rotated when
     /// they don't fit), reference lines with a legend, title and y label.
     pub fn render(&self) -> Image {
+        let mut img = Image::new(self.width, self.height, WHITE);
+        self.draw(&mut img);
+        img
+    }
+
+    /// The picture of [`BarChart::render`] as SVG.
+    pub fn render_svg(&self) -> Svg {
+        let mut c = SvgCanvas::new(self.width, self.height, WHITE);
+        self.draw(&mut c);
+        c.finish()
+    }
+
+    fn draw(&self, img: &mut impl Canvas) {
         let (w, h, s) = (self.width, self.height, scale_for(self.width, self.height));
-        let mut img = Image::new(w, h, WHITE);
         if w == 0 || h == 0 {
-            return img;
+            return;
         }
         let ok = |v: f64| v.is_finite() && (!self.log_y || v > 0.0);
         let vals = self
@@ -434,7 +491,7 @@ impl BarChart {
         // turned labels are written in full; at most half the picture is kept for them
         let up_h = names.iter().map(|l| tw(l, 1)).max().unwrap_or(0).min(h / 2);
         let (p, [ya, _]) = layout(w, h, labels, if up { up_h } else { GLYPH_HEIGHT * ls }, ranges);
-        draw_axes(&mut img, &p, &ya, None);
+        draw_axes(img, &p, &ya, None);
         let base = if self.log_y {
             p.y1
         } else {
@@ -470,9 +527,8 @@ impl BarChart {
                 img.draw_text(xc.saturating_sub(tw(label, ls) / 2), ly, label, INK, ls);
             }
         }
-        let refs = hlines(&mut img, &p, &ya, &self.hlines);
-        draw_legend(&mut img, &p, &refs);
-        draw_titles(&mut img, &p, &self.title, "", &self.y_label);
-        img
+        let refs = hlines(img, &p, &ya, &self.hlines);
+        draw_legend(img, &p, &refs);
+        draw_titles(img, &p, &self.title, "", &self.y_label);
     }
 }

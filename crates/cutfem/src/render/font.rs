@@ -68,6 +68,14 @@ fn font_px(scale: usize) -> f32 {
     (GLYPH_HEIGHT * scale.max(1)) as f32 / font().1
 }
 
+/// The em size in pixels of the text at `scale` (the `font-size` of CSS and SVG): `ab_glyph`
+/// scales by the font's height (ascent - descent), the em is `units_per_em` of it.
+pub fn font_em_px(scale: usize) -> f32 {
+    let (font, _) = font();
+    let em = font.units_per_em().unwrap_or(2048.0);
+    font_px(scale) * em / font.height_unscaled()
+}
+
 /// Size in pixels of the box of `text` at `scale`: its advance width (rounded up) and the
 /// capital height `GLYPH_HEIGHT * scale`. Empty text is 0 wide.
 pub fn text_size(text: &str, scale: usize) -> (usize, usize) {

@@ -27,7 +27,7 @@ pub mod raster;
 mod shade;
 
 pub use camera::{Camera, CameraFrame, ORBIT_FOV_Y};
-pub use font::{text_mask, TextMask, GLYPH_HEIGHT};
+pub use font::{font_em_px, text_mask, TextMask, GLYPH_HEIGHT};
 pub use image::{Image, BORDER_COLOR};
 pub use shade::{render, render_with_depth, vertex_normals};
 

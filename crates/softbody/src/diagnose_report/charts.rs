@@ -21,8 +21,8 @@ pub(super) fn hline(y: f64, label: &str, color: [u8; 3], log: bool) -> Option<(f
     (y.is_finite() && (!log || y > 0.0)).then(|| (y, label.to_string(), color))
 }
 
-/// Picture 1: rms per frame with the noise floor.
-pub(super) fn rms_over_time(d: &Diagnosis) -> Image {
+/// Picture 1: rms per frame with the noise floor (a chart alone: written as PNG and SVG).
+pub(super) fn rms_over_time(d: &Diagnosis) -> Chart {
     let pts: Vec<(f64, f64)> = d.per_frame.iter().map(|&(f, r, _)| (f as f64, r)).collect();
     let log = spans_decade(pts.iter().map(|p| p.1).chain([d.noise_floor]));
     let worst: Vec<(f64, f64)> = pts
@@ -48,7 +48,6 @@ pub(super) fn rms_over_time(d: &Diagnosis) -> Image {
         height: 440,
         ..Chart::default()
     }
-    .render()
 }
 
 /// The direction analysis in words.

@@ -234,7 +234,7 @@ fn every_picture_is_written_with_its_size() {
     ];
     assert_eq!(names, expected);
     let images = [
-        rms_over_time(&d),
+        rms_over_time(&d).render(),
         surface_residual(&d, &reference),
         worst_frame(&d, &worst),
         residual_direction(&d, inputs.gravity),
@@ -248,6 +248,10 @@ fn every_picture_is_written_with_its_size() {
         assert_eq!(pw, w, "{}", path.display());
         assert!((440..=700).contains(&ph), "{}: height {ph}", path.display());
     }
+    // the chart alone has its SVG twin, of the same size
+    let svg = std::fs::read_to_string(dir.join("rms_over_time.svg")).expect("svg twin");
+    assert!(svg.starts_with("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"800\" height=\"440\""));
+    assert!(svg.contains("noise floor") && svg.contains("<polyline") && svg.trim_end().ends_with("</svg>"));
     // without history there is no history picture
     let inputs = PictureInputs {
         history: &[],

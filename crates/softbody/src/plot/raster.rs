@@ -38,6 +38,17 @@ pub(super) fn tw(text: &str, scale: usize) -> usize {
 pub(super) struct Layer {
     p: Plot,
     cov: Vec<f32>,
+    /// what was drawn, for vector output ([`super::canvas::SvgCanvas`])
+    ops: Vec<Op>,
+}
+
+/// One drawing operation of a [`Layer`].
+#[derive(Clone, Debug, PartialEq)]
+pub(super) enum Op {
+    /// a disc: centre, radius
+    Disc(Pt, f64),
+    /// a polyline: points, half-width, dash `(on, off)`
+    Poly(Vec<Pt>, f64, Option<(f64, f64)>),
 }
 
 impl Layer {
@@ -45,6 +56,7 @@ impl Layer {
         Layer {
             p: *p,
             cov: vec![0.0; (p.x1 - p.x0) * (p.y1 - p.y0)],
+            ops: Vec::new(),
         }
     }
 
@@ -64,6 +76,7 @@ impl Layer {
     }
 
     pub(super) fn disc(&mut self, (cx, cy): Pt, r: f64) {
+        self.ops.push(Op::Disc((cx, cy), r));
         let d = r + 1.0;
         self.stamp((cx - d, cx + d, cy - d, cy + d), |x, y| {
             r + 0.5 - (x - cx).hypot(y - cy)
@@ -101,6 +114,7 @@ impl Layer {
 
     /// A polyline, dashed `(on, off)` pixels when `dash` is given.
     pub(super) fn polyline(&mut self, pts: &[Pt], hw: f64, dash: Option<(f64, f64)>) {
+        self.ops.push(Op::Poly(pts.to_vec(), hw, dash));
         let mut pos = 0.0;
         for w in pts.windows(2) {
             let (Some((on, off)), Some((a, b))) = (dash, self.clip(w[0], w[1], hw + 2.0)) else {
@@ -119,6 +133,36 @@ impl Layer {
                 (pos, t) = (pos + t2 - t, t2);
             }
         }
+    }
+
+    /// The operations drawn so far, in order.
+    pub(super) fn ops(&self) -> &[Op] {
+        &self.ops
+    }
+
+    /// Whether `q` lies in the plot.
+    pub(super) fn contains(&self, q: Pt) -> bool {
+        let p = self.p;
+        (p.x0 as f64..=p.x1 as f64).contains(&q.0) && (p.y0 as f64..=p.y1 as f64).contains(&q.1)
+    }
+
+    /// The parts of the polyline `pts` inside the plot, as polylines.
+    pub(super) fn clipped_runs(&self, pts: &[Pt]) -> Vec<Vec<Pt>> {
+        let mut runs: Vec<Vec<Pt>> = Vec::new();
+        let mut open = false;
+        for w in pts.windows(2) {
+            let Some((a, b)) = self.clip(w[0], w[1], 0.0) else {
+                open = false;
+                continue;
+            };
+            match runs.last_mut() {
+                Some(run) if open && run.last() == Some(&a) => run.push(b),
+                _ => runs.push(vec![a, b]),
+            }
+            // the run goes on when the segment left the plot at its own end point
+            open = b == w[1];
+        }
+        runs
     }
 
     pub(super) fn composite(&self, img: &mut Image, color: [u8; 3]) {

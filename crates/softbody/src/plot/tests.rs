@@ -246,6 +246,7 @@ fn write_examples() {
     let dir = std::path::Path::new("/tmp/plot_examples");
     std::fs::create_dir_all(dir).unwrap();
     demo().render().save_png(&dir.join("loss_log.png")).unwrap();
+    demo().render_svg().save(&dir.join("loss_log.svg")).unwrap();
     let lin = Chart {
         title: "Young's modulus estimate".into(),
         x_label: "iteration".into(),
