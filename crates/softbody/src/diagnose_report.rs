@@ -19,7 +19,7 @@ mod raster;
 mod tests;
 
 use crate::plot::axis::fmt_compact;
-use crate::plot::grid_of;
+use crate::plot::{grid_of, stack, Canvas, Picture, SvgCanvas};
 use adjoint::diagnosis::history::Entry;
 use adjoint::diagnosis::Diagnosis;
 use charts::{candidates, history, residual_direction, rms_over_time};
@@ -52,37 +52,59 @@ const SURFACE_TITLE: &str =
 /// Side of one rendered view in pixels.
 const VIEW: usize = 380;
 
+/// The report's pictures, in its order.
+const PICTURES: [&str; 6] = [
+    "rms_over_time.png",
+    "surface_residual.png",
+    "worst_frame.png",
+    "residual_direction.png",
+    "history.png",
+    "candidates.png",
+];
+
 /// Writes the PNGs into `dir`, returns their paths (in this order): `rms_over_time.png`,
 /// `surface_residual.png`, `worst_frame.png`, `residual_direction.png`, `history.png` (only
 /// with a history), `candidates.png`.
 pub fn write_pictures(dir: &Path, d: &Diagnosis, inputs: &PictureInputs) -> Result<Vec<PathBuf>, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let rms_path = dir.join("rms_over_time.png");
-    crate::fit_report::save_charts(&[rms_over_time(d)], 1, &rms_path)?;
-    let mut out = vec![rms_path];
-    let mut pictures = vec![
-        ("surface_residual.png", surface_residual(d, inputs.reference)),
-        ("worst_frame.png", worst_frame(d, inputs.worst)),
+    // the charts in both forms (PNG and SVG), the surface renderings as PNG
+    let mut charts = vec![
+        ("rms_over_time.png", rms_over_time(d).picture()),
         ("residual_direction.png", residual_direction(d, inputs.gravity)),
     ];
     if !inputs.history.is_empty() {
-        pictures.push(("history.png", history(inputs.history)));
+        charts.push(("history.png", history(inputs.history)));
     }
-    pictures.push(("candidates.png", candidates(d)));
-    for (name, img) in pictures {
+    charts.push(("candidates.png", candidates(d)));
+    let surfaces = [
+        ("surface_residual.png", surface_residual(d, inputs.reference)),
+        ("worst_frame.png", worst_frame(d, inputs.worst)),
+    ];
+    for (name, img) in &surfaces {
         let path = dir.join(name);
         img.save_png(&path)
             .map_err(|e| format!("{}: {e}", path.display()))?;
-        out.push(path);
     }
+    for (name, picture) in &charts {
+        picture.save(&dir.join(name))?;
+    }
+    // in the report's order
+    let written: Vec<&str> = charts
+        .iter()
+        .map(|c| c.0)
+        .chain(surfaces.iter().map(|s| s.0))
+        .collect();
+    let out = PICTURES
+        .iter()
+        .filter(|n| written.contains(n))
+        .map(|n| dir.join(n))
+        .collect();
     Ok(out)
 }
 
 /// Writes the history picture alone (rms per run over the user's models) to `path`.
 pub fn write_history_picture(path: &Path, history_entries: &[Entry]) -> Result<(), String> {
-    history(history_entries)
-        .save_png(path)
-        .map_err(|e| format!("{}: {e}", path.display()))
+    history(history_entries).save(path)
 }
 
 /// `text` split into lines of at most `chars` characters at spaces.
@@ -105,33 +127,21 @@ fn wrap(text: &str, chars: usize) -> Vec<String> {
 }
 
 /// `text` wrapped to `width` pixels at `scale`, on white, centred or left-aligned.
-fn text_block(width: usize, text: &str, scale: usize, center: bool) -> Image {
+fn text_block(width: usize, text: &str, scale: usize, center: bool) -> Picture {
     let (pad, row) = (6, (GLYPH_HEIGHT + 4) * scale);
     let chars = (width.saturating_sub(2 * pad) / (6 * scale)).max(8);
     let lines = wrap(text, chars);
-    let mut img = Image::new(width, 2 * pad + lines.len() * row, WHITE);
+    let mut c = SvgCanvas::new(width, 2 * pad + lines.len() * row, WHITE);
     for (i, line) in lines.iter().enumerate() {
         let w = Image::text_size(line, scale).0;
         let x = if center { width.saturating_sub(w) / 2 } else { pad };
-        img.draw_text(x, pad + i * row, line, INK, scale);
+        c.draw_text(x, pad + i * row, line, INK, scale);
     }
-    img
-}
-
-/// `parts` one under the other, centred, on white.
-fn stack(parts: &[Image]) -> Image {
-    let w = parts.iter().map(|p| p.width).max().unwrap_or(0);
-    let mut out = Image::new(w, parts.iter().map(|p| p.height).sum(), WHITE);
-    let mut y = 0;
-    for p in parts {
-        out.blit(p, (w - p.width) / 2, y);
-        y += p.height;
-    }
-    out
+    c.into_picture()
 }
 
 /// A row of legend entries `(label, colour, dashed)`: a filled swatch, or a dashed line.
-fn key_row(width: usize, entries: &[(&str, [u8; 3], bool)]) -> Image {
+fn key_row(width: usize, entries: &[(&str, [u8; 3], bool)]) -> Picture {
     let (s, gap, sw) = (2, 24, 24);
     let total: usize = entries
         .iter()
@@ -139,8 +149,9 @@ fn key_row(width: usize, entries: &[(&str, [u8; 3], bool)]) -> Image {
         .sum::<usize>()
         .saturating_sub(gap);
     let ch = GLYPH_HEIGHT * s;
-    let mut img = Image::new(width.max(total + 12), ch + 12, WHITE);
-    let mut x = img.width.saturating_sub(total) / 2;
+    let width = width.max(total + 12);
+    let mut img = SvgCanvas::new(width, ch + 12, WHITE);
+    let mut x = width.saturating_sub(total) / 2;
     for &(label, color, dashed) in entries {
         if dashed {
             for k in 0..3 {
@@ -152,7 +163,7 @@ fn key_row(width: usize, entries: &[(&str, [u8; 3], bool)]) -> Image {
         img.draw_text(x + sw + 6, 6, label, INK, s);
         x += sw + 6 + Image::text_size(label, s).0 + gap;
     }
-    img
+    img.into_picture()
 }
 
 /// Diverging colour map: `t` in `[-1, 1]` (clamped) from blue through white to red.
@@ -365,9 +376,9 @@ fn views(
 /// A picture that says there is nothing to draw.
 fn empty_picture(title: &str, why: &str) -> Image {
     stack(&[
-        text_block(3 * VIEW, title, 2, true),
-        text_block(3 * VIEW, why, 2, true),
-        Image::new(3 * VIEW, 120, WHITE),
+        &text_block(3 * VIEW, title, 2, true).png,
+        &text_block(3 * VIEW, why, 2, true).png,
+        &Image::new(3 * VIEW, 120, WHITE),
     ])
 }
 
@@ -412,10 +423,10 @@ fn surface_residual(d: &Diagnosis, reference: &TriMesh) -> Image {
     let w = tiles.width;
     let no_data = means.iter().any(|m| m.is_nan());
     stack(&[
-        text_block(w, title, 2, true),
-        tiles,
-        colorbar(w, limit, "mean signed residual per vertex", no_data),
-        text_block(w, "dots with numbers: centres of the surface regions", 2, true),
+        &text_block(w, title, 2, true).png,
+        &tiles,
+        &colorbar(w, limit, "mean signed residual per vertex", no_data),
+        &text_block(w, "dots with numbers: centres of the surface regions", 2, true).png,
     ])
 }
 
@@ -472,14 +483,14 @@ fn worst_frame(d: &Diagnosis, worst: &TriMesh) -> Image {
     let w = tiles.width;
     let outside = points.iter().filter(|r| r.outside).count();
     let mut parts = vec![
-        text_block(w, &title, 2, true),
+        text_block(w, &title, 2, true).png,
         tiles,
         colorbar(w, limit, "signed residual of each observed point", false),
     ];
     if outside > 0 {
         let s = if outside == 1 { "" } else { "s" };
         let note = format!("black: {outside} point{s} far from every triangle of the model");
-        parts.push(text_block(w, &note, 2, true));
+        parts.push(text_block(w, &note, 2, true).png);
     }
-    stack(&parts)
+    stack(&parts.iter().collect::<Vec<_>>())
 }

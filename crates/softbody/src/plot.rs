@@ -17,8 +17,8 @@ mod tests;
 
 pub use axis::Axis;
 use axis::{fmt_compact, padded};
-pub use canvas::{svg_grid, Svg};
-use canvas::{Canvas, SvgCanvas};
+pub use canvas::{svg_grid, Picture, Svg};
+pub(crate) use canvas::{Canvas, SvgCanvas};
 use cutfem::render::{Image, GLYPH_HEIGHT};
 use raster::{tw, Layer, Plot};
 
@@ -174,6 +174,32 @@ pub fn grid_of(images: Vec<Image>, columns: usize) -> Image {
         out.blit(img, x, y);
     }
     out
+}
+
+/// `parts` one under the other, centred, on white.
+pub fn stack(parts: &[&Image]) -> Image {
+    let sizes: Vec<(usize, usize)> = parts.iter().map(|i| (i.width, i.height)).collect();
+    let (w, h, at) = stack_cells(&sizes);
+    let mut out = Image::new(w, h, WHITE);
+    for (p, (x, y)) in parts.iter().zip(at) {
+        out.blit(p, x, y);
+    }
+    out
+}
+
+/// The size of pictures of `sizes` one under the other, centred, and each one's top-left corner.
+fn stack_cells(sizes: &[(usize, usize)]) -> (usize, usize, Vec<(usize, usize)>) {
+    let w = sizes.iter().map(|s| s.0).max().unwrap_or(0);
+    let mut y = 0;
+    let at = sizes
+        .iter()
+        .map(|&(pw, ph)| {
+            let corner = ((w - pw) / 2, y);
+            y += ph;
+            corner
+        })
+        .collect();
+    (w, y, at)
 }
 
 /// The size of a grid of pictures of `sizes`, `columns` per row (at least 1), in equal cells
@@ -422,6 +448,13 @@ impl Chart {
         img
     }
 
+    /// The chart in both forms.
+    pub fn picture(&self) -> Picture {
+        let mut c = SvgCanvas::new(self.width, self.height, WHITE);
+        self.draw(&mut c);
+        c.into_picture()
+    }
+
     /// The picture of [`Chart::render`] as SVG.
     pub fn render_svg(&self) -> Svg {
         let mut c = SvgCanvas::new(self.width, self.height, WHITE);
@@ -429,7 +462,8 @@ impl Chart {
         c.finish()
     }
 
-    fn draw(&self, img: &mut impl Canvas) {
+    /// Draws the chart on `img` (of the chart's size).
+    pub(crate) fn draw(&self, img: &mut impl Canvas) {
         if self.width == 0 || self.height == 0 {
             return;
         }
@@ -456,6 +490,13 @@ impl BarChart {
         img
     }
 
+    /// The chart in both forms.
+    pub fn picture(&self) -> Picture {
+        let mut c = SvgCanvas::new(self.width, self.height, WHITE);
+        self.draw(&mut c);
+        c.into_picture()
+    }
+
     /// The picture of [`BarChart::render`] as SVG.
     pub fn render_svg(&self) -> Svg {
         let mut c = SvgCanvas::new(self.width, self.height, WHITE);
@@ -463,7 +504,8 @@ impl BarChart {
         c.finish()
     }
 
-    fn draw(&self, img: &mut impl Canvas) {
+    /// Draws the chart on `img` (of the chart's size).
+    pub(crate) fn draw(&self, img: &mut impl Canvas) {
         let (w, h, s) = (self.width, self.height, scale_for(self.width, self.height));
         if w == 0 || h == 0 {
             return;

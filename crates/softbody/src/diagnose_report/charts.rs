@@ -1,9 +1,9 @@
 //! The charts of a diagnosis report: rms per frame, the residual direction, the history of
 //! the user's models and the candidate effects.
 
-use super::{key_row, stack, text_block, INK, REF_GREY};
+use super::{key_row, text_block, INK, REF_GREY, WHITE};
 use crate::plot::axis::fmt_compact;
-use crate::plot::{palette, BarChart, Chart, Series, Style};
+use crate::plot::{palette, BarChart, Canvas, Chart, Picture, Series, Style, SvgCanvas};
 use adjoint::diagnosis::history::Entry;
 use adjoint::diagnosis::Diagnosis;
 use cutfem::render::Image;
@@ -88,7 +88,7 @@ fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
 }
 
 /// Picture 4: the per-frame mean residual vector.
-pub(super) fn residual_direction(d: &Diagnosis, gravity: Option<[f64; 3]>) -> Image {
+pub(super) fn residual_direction(d: &Diagnosis, gravity: Option<[f64; 3]>) -> Picture {
     let pf = &d.direction.per_frame;
     let comp = |k: usize| -> Vec<(f64, f64)> { pf.iter().map(|(f, v, _)| (*f as f64, v[k])).collect() };
     let mut series = vec![
@@ -113,9 +113,9 @@ pub(super) fn residual_direction(d: &Diagnosis, gravity: Option<[f64; 3]>) -> Im
         height: 440,
         ..Chart::default()
     }
-    .render();
-    let words = text_block(chart.width, &direction_words(d, gravity), 2, false);
-    stack(&[chart, words])
+    .picture();
+    let words = text_block(chart.png.width, &direction_words(d, gravity), 2, false);
+    Picture::stack(&[chart, words])
 }
 
 /// An effect list written in full: its names joined by ` + `, or "(none)".
@@ -141,7 +141,7 @@ pub(super) fn change(before: &[String], after: &[String]) -> String {
 }
 
 /// Picture 5: rms per run over the user's models.
-pub(super) fn history(runs: &[Entry]) -> Image {
+pub(super) fn history(runs: &[Entry]) -> Picture {
     let rms: Vec<(f64, f64)> = runs
         .iter()
         .enumerate()
@@ -170,7 +170,8 @@ pub(super) fn history(runs: &[Entry]) -> Image {
         height: 440,
         ..Chart::default()
     };
-    let mut img = chart.render();
+    let mut img = SvgCanvas::new(chart.width, chart.height, WHITE);
+    chart.draw(&mut img);
     // where the effect list changes: what changed, over the point
     let ([x0, y0, x1, y1], [ya, xa]) = chart.plot_area();
     let changes: Vec<(usize, String)> = (0..runs.len())
@@ -228,12 +229,12 @@ pub(super) fn history(runs: &[Entry]) -> Image {
             .map_or(String::new(), |m| format!(" (missing: {m})"));
         lines.push(format!("{which}: {effects}{missing}"));
     }
-    let words = text_block(img.width, &lines.join("\n"), 2, false);
-    stack(&[img, words])
+    let words = text_block(chart.width, &lines.join("\n"), 2, false);
+    Picture::stack(&[img.into_picture(), words])
 }
 
 /// Picture 6: predicted and refitted rms per candidate effect.
-pub(super) fn candidates(d: &Diagnosis) -> Image {
+pub(super) fn candidates(d: &Diagnosis) -> Picture {
     let (pred, refit) = (palette(0), palette(2));
     let shown = &d.candidates[..d.candidates.len().min(8)];
     // full names: the chart writes them smaller, or turned, when they don't fit under their bars
@@ -261,9 +262,9 @@ pub(super) fn candidates(d: &Diagnosis) -> Image {
         width: 800,
         height: 440,
     }
-    .render();
+    .picture();
     let key = key_row(
-        chart.width,
+        chart.png.width,
         &[
             ("predicted", pred, false),
             ("after refit", refit, false),
@@ -280,6 +281,6 @@ pub(super) fn candidates(d: &Diagnosis) -> Image {
         "predicted: Gauss-Newton prediction of the score test; after refit: a short refit with the \
          effect.\n{verdict}"
     );
-    let words = text_block(chart.width, &note, 2, true);
-    stack(&[chart, key, words])
+    let words = text_block(chart.png.width, &note, 2, true);
+    Picture::stack(&[chart, key, words])
 }

@@ -237,9 +237,9 @@ fn every_picture_is_written_with_its_size() {
         rms_over_time(&d).render(),
         surface_residual(&d, &reference),
         worst_frame(&d, &worst),
-        residual_direction(&d, inputs.gravity),
-        history(&runs),
-        candidates(&d),
+        residual_direction(&d, inputs.gravity).png,
+        history(&runs).png,
+        candidates(&d).png,
     ];
     let widths = [800, 8 + 3 * (VIEW + 8), 8 + 2 * (VIEW + 8), 800, 800, 800];
     for ((path, img), w) in paths.iter().zip(&images).zip(widths) {
@@ -248,10 +248,34 @@ fn every_picture_is_written_with_its_size() {
         assert_eq!(pw, w, "{}", path.display());
         assert!((440..=700).contains(&ph), "{}: height {ph}", path.display());
     }
-    // the chart alone has its SVG twin, of the same size
-    let svg = std::fs::read_to_string(dir.join("rms_over_time.svg")).expect("svg twin");
-    assert!(svg.starts_with("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"800\" height=\"440\""));
-    assert!(svg.contains("noise floor") && svg.contains("<polyline") && svg.trim_end().ends_with("</svg>"));
+    // the charts have SVG twins of the same size; the surface renderings do not
+    for (path, img) in paths.iter().zip(&images) {
+        let svg = std::fs::read_to_string(path.with_extension("svg"));
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        if name.starts_with("surface") || name.starts_with("worst") {
+            assert!(svg.is_err(), "{name}");
+            continue;
+        }
+        let svg = svg.expect("svg twin");
+        let head = format!(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\"",
+            img.width, img.height
+        );
+        assert!(svg.starts_with(&head), "{name}: {}", &svg[..100]);
+        assert!(
+            svg.contains("<polyline") && svg.trim_end().ends_with("</svg>"),
+            "{name}"
+        );
+        assert_eq!(
+            svg.matches("<svg").count(),
+            svg.matches("</svg>").count(),
+            "{name}"
+        );
+    }
+    let rms = std::fs::read_to_string(dir.join("rms_over_time.svg")).unwrap();
+    assert!(rms.contains(">noise floor</text>"));
+    let cands = std::fs::read_to_string(dir.join("candidates.svg")).unwrap();
+    assert!(cands.contains(">after refit</text>") && cands.contains(">predicted</text>"));
     // without history there is no history picture
     let inputs = PictureInputs {
         history: &[],
@@ -273,7 +297,7 @@ fn surface_is_red_where_outside_and_blue_where_inside() {
     let d = diagnosis();
     let reference = sphere(CENTER, 0.5, 24, 48);
     let img = surface_residual(&d, &reference);
-    let title = text_block(img.width, SURFACE_TITLE, 2, true).height;
+    let title = text_block(img.width, SURFACE_TITLE, 2, true).png.height;
     // first view: azimuth 0.5 rad from +z, so +x is on the right of the picture
     let (xs, ys) = ((8, 8 + VIEW), (title + 8, title + 8 + VIEW));
     let (reds, red_x) = census(&img, xs, ys, is_red);
@@ -294,7 +318,7 @@ fn worst_frame_dots_are_coloured_by_sign() {
     let d = diagnosis();
     let worst = sphere(CENTER, 0.49, 24, 48);
     let img = worst_frame(&d, &worst);
-    let title = text_block(img.width, "worst frame", 2, true).height;
+    let title = text_block(img.width, "worst frame", 2, true).png.height;
     let (xs, ys) = ((8, 8 + VIEW), (title + 8, title + 8 + VIEW));
     let (reds, red_x) = census(&img, xs, ys, is_red);
     let (blues, blue_x) = census(&img, xs, ys, is_blue);

@@ -9,7 +9,7 @@ use cutfem::render::{font_em_px, Image, GLYPH_HEIGHT};
 use std::fmt::Write;
 
 /// A surface the charts draw on (module docs).
-pub(super) trait Canvas {
+pub(crate) trait Canvas {
     /// The raster picture drawn so far.
     fn image(&self) -> &Image;
     /// A filled rectangle.
@@ -71,6 +71,11 @@ impl Svg {
 pub fn svg_grid(items: Vec<Svg>, columns: usize) -> Svg {
     let sizes: Vec<(usize, usize)> = items.iter().map(|s| (s.width, s.height)).collect();
     let (width, height, at) = super::grid_cells(&sizes, columns);
+    placed(width, height, &items, &at)
+}
+
+/// A white picture of `width` x `height` with `items` at `at` (top-left corners).
+fn placed(width: usize, height: usize, items: &[Svg], at: &[(usize, usize)]) -> Svg {
     let mut body = format!("<rect width=\"{width}\" height=\"{height}\" fill=\"#ffffff\"/>\n");
     for (s, (x, y)) in items.iter().zip(at) {
         let _ = writeln!(
@@ -84,8 +89,39 @@ pub fn svg_grid(items: Vec<Svg>, columns: usize) -> Svg {
     Svg { width, height, body }
 }
 
+/// A picture drawn once into both forms: the raster image and its SVG twin.
+#[derive(Clone, Debug)]
+pub struct Picture {
+    /// the raster image (PNG)
+    pub png: Image,
+    /// the same picture as SVG
+    pub svg: Svg,
+}
+
+impl Picture {
+    /// Writes the PNG to `path` and the SVG beside it (`path` with the extension `svg`).
+    pub fn save(&self, path: &std::path::Path) -> Result<(), String> {
+        self.png
+            .save_png(path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        self.svg.save(&path.with_extension("svg"))
+    }
+
+    /// `parts` one under the other, centred, on white ([`super::stack`]).
+    pub fn stack(parts: &[Picture]) -> Picture {
+        let images: Vec<&Image> = parts.iter().map(|p| &p.png).collect();
+        let sizes: Vec<(usize, usize)> = images.iter().map(|i| (i.width, i.height)).collect();
+        let (w, h, at) = super::stack_cells(&sizes);
+        let svgs: Vec<Svg> = parts.iter().map(|p| p.svg.clone()).collect();
+        Picture {
+            png: super::stack(&images),
+            svg: placed(w, h, &svgs, &at),
+        }
+    }
+}
+
 /// Draws into an image and records SVG elements (module docs).
-pub(super) struct SvgCanvas {
+pub(crate) struct SvgCanvas {
     img: Image,
     body: String,
 }
@@ -116,8 +152,8 @@ fn points(pts: &[Pt]) -> String {
 }
 
 impl SvgCanvas {
-    /// A white canvas of `width` x `height`.
-    pub(super) fn new(width: usize, height: usize, background: [u8; 3]) -> Self {
+    /// A canvas of `width` x `height` filled with `background`.
+    pub(crate) fn new(width: usize, height: usize, background: [u8; 3]) -> Self {
         let body = format!(
             "<rect width=\"{width}\" height=\"{height}\" fill=\"{}\"/>\n",
             hex(background)
@@ -130,11 +166,17 @@ impl SvgCanvas {
 
     /// The recorded picture.
     pub(super) fn finish(self) -> Svg {
-        Svg {
+        self.into_picture().svg
+    }
+
+    /// The picture in both forms.
+    pub(crate) fn into_picture(self) -> Picture {
+        let svg = Svg {
             width: self.img.width,
             height: self.img.height,
             body: self.body,
-        }
+        };
+        Picture { png: self.img, svg }
     }
 
     fn text_element(&mut self, transform: String, text: &str, color: [u8; 3], scale: usize) {

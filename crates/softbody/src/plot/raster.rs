@@ -35,7 +35,7 @@ pub(super) fn tw(text: &str, scale: usize) -> usize {
 
 /// Coverage (0..1) of one colour over the plot interior, composited once so that a polyline
 /// overlapping itself doesn't darken.
-pub(super) struct Layer {
+pub(crate) struct Layer {
     p: Plot,
     cov: Vec<f32>,
     /// what was drawn, for vector output ([`super::canvas::SvgCanvas`])
