@@ -19,7 +19,7 @@ mod raster;
 mod tests;
 
 use crate::plot::axis::fmt_compact;
-use crate::plot::{grid_of, stack, Canvas, Picture, SvgCanvas};
+use crate::plot::{grid_of, stack, Canvas, Figure, Picture, SvgCanvas};
 use adjoint::diagnosis::history::Entry;
 use adjoint::diagnosis::Diagnosis;
 use charts::{candidates, history, residual_direction, rms_over_time};

@@ -1,7 +1,7 @@
 //! The pictures of a fit report: cost per iteration, each parameter per iteration, and the rms
 //! per frame before and after.
 
-use crate::plot::{grid_of, palette, svg_grid, Chart, Series, Style};
+use crate::plot::{grid_of, palette, svg_grid, Chart, Figure, Series, Style};
 use adjoint::problem::Evaluation;
 use serde_json::{json, Value};
 use std::path::Path;

@@ -417,6 +417,53 @@ fn draw_legend(img: &mut impl Canvas, p: &Plot, entries: &[Entry]) {
     }
 }
 
+/// A chart: drawn once on any [`Canvas`], rendered as a raster image, as SVG, or as both.
+pub(crate) trait Figure {
+    /// Width and height in pixels.
+    fn size(&self) -> (usize, usize);
+    /// Draws the figure on `c` (of the figure's size, white).
+    fn draw_on<C: Canvas>(&self, c: &mut C);
+
+    /// The raster picture.
+    fn render(&self) -> Image {
+        let (w, h) = self.size();
+        let mut img = Image::new(w, h, WHITE);
+        self.draw_on(&mut img);
+        img
+    }
+
+    /// The picture in both forms (PNG and SVG), drawn in one pass.
+    fn picture(&self) -> Picture {
+        let (w, h) = self.size();
+        let mut c = SvgCanvas::new(w, h, WHITE);
+        self.draw_on(&mut c);
+        c.into_picture()
+    }
+
+    /// The picture as SVG.
+    fn render_svg(&self) -> Svg {
+        self.picture().svg
+    }
+}
+
+impl Figure for Chart {
+    fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+    fn draw_on<C: Canvas>(&self, c: &mut C) {
+        self.draw(c)
+    }
+}
+
+impl Figure for BarChart {
+    fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+    fn draw_on<C: Canvas>(&self, c: &mut C) {
+        self.draw(c)
+    }
+}
+
 impl Chart {
     /// The plot interior `[x0, y0, x1, y1]` (pixels, end exclusive) and the `[y, x]` axes.
     pub fn plot_area(&self) -> ([usize; 4], [Axis; 2]) {
@@ -440,29 +487,9 @@ impl Chart {
         layout(w, h, labels, GLYPH_HEIGHT * scale_for(w, h), ranges)
     }
 
-    /// Draws the chart: white background, grid, frame, tick labels, reference lines, series,
-    /// legend (in the corner with the least data), title and axis labels.
-    pub fn render(&self) -> Image {
-        let mut img = Image::new(self.width, self.height, WHITE);
-        self.draw(&mut img);
-        img
-    }
-
-    /// The chart in both forms.
-    pub fn picture(&self) -> Picture {
-        let mut c = SvgCanvas::new(self.width, self.height, WHITE);
-        self.draw(&mut c);
-        c.into_picture()
-    }
-
-    /// The picture of [`Chart::render`] as SVG.
-    pub fn render_svg(&self) -> Svg {
-        let mut c = SvgCanvas::new(self.width, self.height, WHITE);
-        self.draw(&mut c);
-        c.finish()
-    }
-
-    /// Draws the chart on `img` (of the chart's size).
+    /// Draws the chart on `img` (of the chart's size): white background, grid, frame, tick
+    /// labels, reference lines, series, legend (in the corner with the least data), title and
+    /// axis labels.
     pub(crate) fn draw(&self, img: &mut impl Canvas) {
         if self.width == 0 || self.height == 0 {
             return;
@@ -482,29 +509,9 @@ impl Chart {
 }
 
 impl BarChart {
-    /// Draws the bars (value labels on top, category labels below: smaller or rotated when
-    /// they don't fit), reference lines with a legend, title and y label.
-    pub fn render(&self) -> Image {
-        let mut img = Image::new(self.width, self.height, WHITE);
-        self.draw(&mut img);
-        img
-    }
-
-    /// The chart in both forms.
-    pub fn picture(&self) -> Picture {
-        let mut c = SvgCanvas::new(self.width, self.height, WHITE);
-        self.draw(&mut c);
-        c.into_picture()
-    }
-
-    /// The picture of [`BarChart::render`] as SVG.
-    pub fn render_svg(&self) -> Svg {
-        let mut c = SvgCanvas::new(self.width, self.height, WHITE);
-        self.draw(&mut c);
-        c.finish()
-    }
-
-    /// Draws the chart on `img` (of the chart's size).
+    /// Draws the bars on `img` (of the chart's size; value labels on top, category labels
+    /// below: smaller or rotated when they don't fit), reference lines with a legend, title and
+    /// y label.
     pub(crate) fn draw(&self, img: &mut impl Canvas) {
         let (w, h, s) = (self.width, self.height, scale_for(self.width, self.height));
         if w == 0 || h == 0 {

@@ -3,7 +3,7 @@
 
 use super::{key_row, text_block, INK, REF_GREY, WHITE};
 use crate::plot::axis::fmt_compact;
-use crate::plot::{palette, BarChart, Canvas, Chart, Picture, Series, Style, SvgCanvas};
+use crate::plot::{palette, BarChart, Canvas, Chart, Figure, Picture, Series, Style, SvgCanvas};
 use adjoint::diagnosis::history::Entry;
 use adjoint::diagnosis::Diagnosis;
 use cutfem::render::Image;

@@ -164,11 +164,6 @@ impl SvgCanvas {
         }
     }
 
-    /// The recorded picture.
-    pub(super) fn finish(self) -> Svg {
-        self.into_picture().svg
-    }
-
     /// The picture in both forms.
     pub(crate) fn into_picture(self) -> Picture {
         let svg = Svg {
