@@ -15,7 +15,8 @@
 //! and [`render`] turn states into PLY meshes and PNG pictures ([`render::raster`] is the one
 //! z-buffer of the workspace, also behind the virtual depth cameras; [`render::font`] the
 //! text, DejaVu Sans); [`scene`] reads the TOML scene
-//! files of `docs/interface.md` and builds from them the one simulation every command runs
+//! files of `docs/interface.md` (every section typed, `[fit]` and `[numerics]` included, each
+//! checked on load) and builds from them the one simulation every command runs
 //! ([`scene::Scene::build_simulation`]: grid, complete model with the forward half of every
 //! effect, [`scene::effects`], and the `[numerics]` solver settings) and writes them back
 //! ([`scene::Scene::write`]: a fitted scene is written from a `Scene` value, checked by reading

@@ -1,7 +1,8 @@
 //! `softbody`: the command-line face of the project (`../shared/docs/interface.md`).
 //!
 //! Thin by design: parse, call the library, print, draw. Every error becomes one line on
-//! stderr and a non-zero exit code; `--json` prints exactly one JSON object on stdout.
+//! stderr and a non-zero exit code; `--json` prints exactly one JSON object on stdout. The
+//! report charts (`plot`) are drawn once and written as PNG and as SVG.
 
 mod demo;
 mod diagnose;
