@@ -168,6 +168,8 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: &Path, seconds
     json!({
         "rms": d.rms,
         "noise_floor": d.noise_floor,
+        "noise_floor_method": d.noise_floor_method,
+        "noise_floor_std_error": d.noise_floor_std_error,
         "per_frame": d.per_frame.iter().map(|(f, r, n)| json!({"frame": f, "rms": r, "points": n})).collect::<Vec<_>>(),
         "regions": d.regions,
         "candidates": candidates,

@@ -21,6 +21,7 @@
 //!    the field took 5% of it, Delta BIC -480). Otherwise: nothing missing.
 
 pub mod effects;
+pub mod floor;
 pub mod history;
 pub mod residuals;
 pub mod score;
@@ -112,8 +113,15 @@ pub struct Diagnosis {
     pub rms_start: f64,
     /// rms of the model as given after its fit
     pub rms: f64,
-    /// model-free estimate of the measurement noise ([`residuals::noise_floor`])
+    /// the estimated deviation of the measurement noise: from the depth images when the cameras'
+    /// intrinsics are known ([`residuals::noise_floor`]), else from the residuals at the fit
+    /// ([`floor::residual_floor`])
     pub noise_floor: f64,
+    /// how [`Diagnosis::noise_floor`] was estimated: `"depth images"`, `"residuals"` or, when the
+    /// residuals are too few, `"plane fits"`
+    pub noise_floor_method: &'static str,
+    /// the standard error of [`Diagnosis::noise_floor`], when the method gives one
+    pub noise_floor_std_error: Option<f64>,
     /// `(frame, rms, points)`
     pub per_frame: Vec<(usize, f64, usize)>,
     /// `(camera, rms, points)`
@@ -246,7 +254,14 @@ pub fn diagnose(
     let records =
         residuals::point_residuals(&mut problem.sim, model.clone(), steps, &cost, setup.observations)?;
     let h = problem.sim.grid.h();
-    let noise_floor = residuals::noise_floor(setup.observations, setup.cameras, setup.eyes, 2.0 * h);
+    let model_free = || residuals::noise_floor(setup.observations, setup.cameras, setup.eyes, 2.0 * h);
+    let (noise_floor, noise_floor_method, noise_floor_std_error) = match setup.cameras {
+        [] => match floor::residual_floor(&records) {
+            Some(f) => (f.sigma, "residuals", Some(f.std_error)),
+            None => (model_free(), "plane fits", None),
+        },
+        _ => (model_free(), "depth images", None),
+    };
     let (per_frame, per_camera) = (residuals_per_frame(&records), residuals_per_camera(&records));
     let verts: Vec<[f64; 3]> = cost.surface().mesh.vertices.clone();
     let centers = residuals::kmeans(&verts, settings.regions);
@@ -288,6 +303,8 @@ pub fn diagnose(
         rms_start,
         rms,
         noise_floor,
+        noise_floor_method,
+        noise_floor_std_error,
         per_frame,
         per_camera,
         regions,

@@ -126,6 +126,8 @@ fn diagnosis() -> Diagnosis {
         rms_start: 0.05,
         rms,
         noise_floor: 0.001,
+        noise_floor_method: "depth images",
+        noise_floor_std_error: None,
         per_frame,
         per_camera: vec![(0, rms, 1), (1, rms, 1), (2, rms, 1)],
         regions,
