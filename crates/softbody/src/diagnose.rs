@@ -170,6 +170,7 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: &Path, seconds
         "noise_floor": d.noise_floor,
         "noise_floor_method": d.noise_floor_method,
         "noise_floor_std_error": d.noise_floor_std_error,
+        "on_bounds": d.on_bounds.iter().map(|(p, v, side)| json!({"parameter": p, "value": v, "bound": side})).collect::<Vec<_>>(),
         "per_frame": d.per_frame.iter().map(|(f, r, n)| json!({"frame": f, "rms": r, "points": n})).collect::<Vec<_>>(),
         "regions": d.regions,
         "candidates": candidates,
@@ -255,12 +256,21 @@ pub fn run(args: Args) -> Result<(), String> {
 /// The diagnosis for a reader, on stderr.
 pub fn print_text(d: &Diagnosis) {
     crate::note!(
-        "model as given ({}): rms {:.4e} (start {:.4e}), noise floor {:.4e}",
+        "model as given ({}): rms {:.4e} (start {:.4e}), noise floor {:.4e} ({}{})",
         d.effects.join(", "),
         d.rms,
         d.rms_start,
-        d.noise_floor
+        d.noise_floor,
+        d.noise_floor_method,
+        d.noise_floor_std_error
+            .map_or(String::new(), |e| format!(", standard error {e:.1e}"))
     );
+    for (p, v, side) in &d.on_bounds {
+        crate::note!(
+            "its fit ended with {p} = {v:.4} on the {side} bound of the plausible range: a wrong \
+             model often pushes a parameter there"
+        );
+    }
     let worst = d.per_frame.iter().find(|f| f.0 == d.worst_frame);
     if let Some((f, r, _)) = worst {
         crate::note!("worst frame {f}: rms {r:.4e}");

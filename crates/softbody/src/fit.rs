@@ -148,18 +148,16 @@ fn discretisation(
     scene: &cutfem::scene::Scene,
     problem: &adjoint::problem::Problem,
     model: &cutfem::fem::Model,
-    obs: &adjoint::observations::Observations,
-    eyes: &[[f64; 3]],
+    frames: Vec<usize>,
+    noise: f64,
     quiet: bool,
 ) -> Value {
-    let grid = &problem.sim.grid;
-    let noise = adjoint::diagnosis::residuals::noise_floor(obs, &[], eyes, 2.0 * grid.h());
     let params = adjoint::refine::RefineParams {
         steps: Some(problem.steps),
-        frames: Some(obs.frame_numbers()),
+        frames: Some(frames),
         ..Default::default()
     };
-    crate::refine_check::run(scene, grid, model, &params, Some(noise), quiet)
+    crate::refine_check::run(scene, &problem.sim.grid, model, &params, Some(noise), quiet)
 }
 
 /// Runs `fit`.
@@ -172,7 +170,7 @@ pub fn run(args: Args) -> Result<(), String> {
         kind,
         observations: obs,
         eyes,
-        ..
+        cameras: camera_file,
     } = args.problem.load()?;
     let settings = Settings::new(&args, &section)?;
     if obs.is_empty() {
@@ -244,9 +242,13 @@ pub fn run(args: Args) -> Result<(), String> {
     } else {
         None
     };
-    // the discretisation share of the final rms, against the observations' noise floor
-    let discretisation =
-        (!args.no_refine_check).then(|| discretisation(&scene, &problem, &model, &obs, &eyes, args.json));
+    // the noise floor at the result (as `diagnose` states it), and the discretisation share of
+    // the final rms against it
+    let cams = camera_file.map(|f| f.cameras()).transpose()?.unwrap_or_default();
+    let (noise, method, noise_se) =
+        adjoint::diagnosis::floor::floor_at(&mut problem, &model, &obs, &cams, &eyes, settings.robust)?;
+    let discretisation = (!args.no_refine_check)
+        .then(|| discretisation(&scene, &problem, &model, obs.frame_numbers(), noise, args.json));
     let history = log.into_history();
     let mut files = crate::fit_report::write(&out, &history, &initial_values, &ev_initial, &ev_final)?;
     if let (Some(u), 2) = (&unc, x_best.len()) {
@@ -267,6 +269,7 @@ pub fn run(args: Args) -> Result<(), String> {
     };
     let mut summary = outcome.json();
     summary["discretisation"] = json!(discretisation);
+    summary["noise_floor"] = json!({"value": noise, "method": method, "std_error": noise_se});
     summary["seconds"] = json!(t0.elapsed().as_secs_f64());
     summary["out"] = json!(out);
     summary["files"] = files;

@@ -23,7 +23,9 @@
 //! Standard error: the MAD's asymptotic variance for Gaussian data is `1.36 sigma^2 / n`;
 //! neighbouring estimates share points, so `n` counts a third of the points.
 
-use super::residuals::PointResidual;
+use super::residuals::{noise_floor, PointResidual};
+use crate::observations::Observations;
+use crate::observe::DepthCamera;
 use std::collections::{BTreeMap, HashMap};
 
 /// A noise floor with its uncertainty.
@@ -35,6 +37,60 @@ pub struct FloorEstimate {
     pub std_error: f64,
     /// the points whose leave-one-out prediction it rests on
     pub points: usize,
+}
+
+/// The noise floor a report states, with how it was estimated and its standard error: from the
+/// depth images when the cameras' intrinsics are known ([`noise_floor`]), else from the
+/// residuals `records` at the fit ([`residual_floor`]), else (too few residuals) from plane fits
+/// through the observed points ([`noise_floor`] without intrinsics; `spacing` sizes its search).
+pub fn stated_floor(
+    observations: &Observations,
+    cameras: &[DepthCamera],
+    eyes: &[[f64; 3]],
+    spacing: f64,
+    records: &[PointResidual],
+) -> (f64, &'static str, Option<f64>) {
+    if !cameras.is_empty() {
+        return (
+            noise_floor(observations, cameras, eyes, spacing),
+            "depth images",
+            None,
+        );
+    }
+    match residual_floor(records) {
+        Some(f) => (f.sigma, "residuals", Some(f.std_error)),
+        None => (
+            noise_floor(observations, cameras, eyes, spacing),
+            "plane fits",
+            None,
+        ),
+    }
+}
+
+/// [`stated_floor`] for the model `model` of `problem` (a fit's result): the residuals come from
+/// one forward run of `problem`'s simulation, measured as the diagnosis measures them (the
+/// distance to the simulated surface, along the viewing rays when `eyes` are known).
+pub fn floor_at(
+    problem: &mut crate::problem::Problem,
+    model: &cutfem::fem::Model,
+    observations: &Observations,
+    cameras: &[DepthCamera],
+    eyes: &[[f64; 3]],
+    robust: crate::cost::Robust,
+) -> Result<(f64, &'static str, Option<f64>), crate::Error> {
+    let grid = &problem.sim.grid;
+    let spacing = 2.0 * grid.h();
+    let frames = crate::fit::observed_frames(observations, eyes);
+    let cost =
+        crate::cost_mesh::SurfaceCost::new(grid, frames, robust)?.with_reach(super::Setup::reach(grid));
+    let records = super::residuals::point_residuals(
+        &mut problem.sim,
+        model.clone(),
+        problem.steps,
+        &cost,
+        observations,
+    )?;
+    Ok(stated_floor(observations, cameras, eyes, spacing, &records))
 }
 
 /// The noise floor of `records` (module docs): `None` with fewer than 16 points whose

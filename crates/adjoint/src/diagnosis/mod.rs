@@ -122,6 +122,10 @@ pub struct Diagnosis {
     pub noise_floor_method: &'static str,
     /// the standard error of [`Diagnosis::noise_floor`], when the method gives one
     pub noise_floor_std_error: Option<f64>,
+    /// the fitted parameters of the model as given that ended on a bound of the fit's box
+    /// (`(parameter, value, "lower" | "upper")`): a wrong model's fit often pushes one there (the
+    /// Poisson ratio to 0.01 or 0.49), itself a clue that the model lacks something
+    pub on_bounds: Vec<(String, f64, &'static str)>,
     /// `(frame, rms, points)`
     pub per_frame: Vec<(usize, f64, usize)>,
     /// `(camera, rms, points)`
@@ -233,6 +237,7 @@ pub fn diagnose(
     let rms_start = problem.evaluate(&x0)?.rms();
     let (x, eval) = score::fit_problem(&mut problem, &x0, settings.fit_iterations)?;
     let model = problem.model_at(&x);
+    let on_bounds = on_bounds(&problem.params.values(&model), &problem.params.bounds(&x0), &x);
     let mut fitted_scene = scene.clone();
     write_back_all(&mut fitted_scene, &model);
     let base = BaseFit {
@@ -254,14 +259,8 @@ pub fn diagnose(
     let records =
         residuals::point_residuals(&mut problem.sim, model.clone(), steps, &cost, setup.observations)?;
     let h = problem.sim.grid.h();
-    let model_free = || residuals::noise_floor(setup.observations, setup.cameras, setup.eyes, 2.0 * h);
-    let (noise_floor, noise_floor_method, noise_floor_std_error) = match setup.cameras {
-        [] => match floor::residual_floor(&records) {
-            Some(f) => (f.sigma, "residuals", Some(f.std_error)),
-            None => (model_free(), "plane fits", None),
-        },
-        _ => (model_free(), "depth images", None),
-    };
+    let (noise_floor, noise_floor_method, noise_floor_std_error) =
+        floor::stated_floor(setup.observations, setup.cameras, setup.eyes, 2.0 * h, &records);
     let (per_frame, per_camera) = (residuals_per_frame(&records), residuals_per_camera(&records));
     let verts: Vec<[f64; 3]> = cost.surface().mesh.vertices.clone();
     let centers = residuals::kmeans(&verts, settings.regions);
@@ -305,6 +304,7 @@ pub fn diagnose(
         noise_floor,
         noise_floor_method,
         noise_floor_std_error,
+        on_bounds,
         per_frame,
         per_camera,
         regions,
@@ -413,6 +413,25 @@ impl Search<'_> {
     }
 }
 
+/// The coordinates of `x` on a bound of the fit's box `bounds` (within 1e-6, relative), with
+/// the physical `values` of the same coordinates.
+fn on_bounds(values: &[(String, f64)], bounds: &[(f64, f64)], x: &[f64]) -> Vec<(String, f64, &'static str)> {
+    let mut out = Vec::new();
+    for (k, (&xk, &(lo, hi))) in x.iter().zip(bounds).enumerate() {
+        let tol = 1e-6 * (1.0 + xk.abs());
+        let side = if xk <= lo + tol {
+            "lower"
+        } else if xk >= hi - tol {
+            "upper"
+        } else {
+            continue;
+        };
+        let (name, value) = values.get(k).cloned().unwrap_or((format!("x[{k}]"), xk));
+        out.push((name, value, side));
+    }
+    out
+}
+
 /// The verdict in plain words.
 fn verdict(
     missing: Option<&Candidate>,
@@ -457,5 +476,29 @@ fn verdict(
                 effects::short(floor)
             ),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// Only the coordinates on (or numerically at) a bound are named, with their side.
+    #[test]
+    fn on_bounds_names_the_coordinates_on_a_bound() {
+        let values = vec![
+            ("young".to_string(), 2000.0),
+            ("poisson".to_string(), 0.01),
+            ("damping_mass".to_string(), 1e4),
+        ];
+        let bounds = [(0.0, 10.0), (-3.0, 3.0), (-13.8, 9.2)];
+        let x = [5.0, -3.0 + 1e-9, 9.2];
+        let got = super::on_bounds(&values, &bounds, &x);
+        assert_eq!(
+            got,
+            vec![
+                ("poisson".to_string(), 0.01, "lower"),
+                ("damping_mass".to_string(), 1e4, "upper")
+            ]
+        );
+        assert!(super::on_bounds(&values, &bounds, &[5.0, 0.0, 0.0]).is_empty());
     }
 }

@@ -128,6 +128,7 @@ fn diagnosis() -> Diagnosis {
         noise_floor: 0.001,
         noise_floor_method: "depth images",
         noise_floor_std_error: None,
+        on_bounds: Vec::new(),
         per_frame,
         per_camera: vec![(0, rms, 1), (1, rms, 1), (2, rms, 1)],
         regions,
