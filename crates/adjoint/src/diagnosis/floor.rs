@@ -23,7 +23,7 @@
 //! Standard error: the MAD's asymptotic variance for Gaussian data is `1.36 sigma^2 / n`;
 //! neighbouring estimates share points, so `n` counts a third of the points.
 
-use super::residuals::{noise_floor, PointResidual};
+use super::residuals::{mad, noise_floor, PointResidual};
 use crate::observations::Observations;
 use crate::observe::DepthCamera;
 use std::collections::{BTreeMap, HashMap};
@@ -156,7 +156,7 @@ fn loo_linear(pts: &[[f64; 3]], res: &[f64], i: usize, near: &[usize]) -> Option
 }
 
 /// Two orthonormal directions spanning the offsets `d` best (the two largest principal axes of
-/// `sum d d^T`, by Jacobi rotations), `None` when they span less than a plane.
+/// `sum d d^T`), `None` when they span less than a plane.
 fn tangents(d: &[[f64; 3]]) -> Option<[[f64; 3]; 2]> {
     let mut m = [[0.0f64; 3]; 3];
     for v in d {
@@ -166,7 +166,8 @@ fn tangents(d: &[[f64; 3]]) -> Option<[[f64; 3]; 2]> {
             }
         }
     }
-    let (vals, vecs) = symmetric_eigen(m);
+    let (vals, v) = cutfem::v3::sym_eigen(m);
+    let vecs = [0, 1, 2].map(|k| [v[0][k], v[1][k], v[2][k]]);
     let mut order = [0, 1, 2];
     order.sort_by(|&a, &b| vals[b].total_cmp(&vals[a]));
     let scale = vals[order[0]];
@@ -174,54 +175,6 @@ fn tangents(d: &[[f64; 3]]) -> Option<[[f64; 3]; 2]> {
         return None;
     }
     Some([vecs[order[0]], vecs[order[1]]])
-}
-
-/// Eigenvalues and eigenvectors (`vecs[k]` for `vals[k]`) of a symmetric 3x3 matrix (cyclic
-/// Jacobi).
-fn symmetric_eigen(mut a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _ in 0..50 {
-        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
-        if off <= 1e-300 || off <= 1e-15 * (a[0][0].abs() + a[1][1].abs() + a[2][2].abs()) {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q] == 0.0 {
-                continue;
-            }
-            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let sign = if theta >= 0.0 { 1.0 } else { -1.0 };
-            let t = sign / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let (c, s) = (1.0 / (t * t + 1.0).sqrt(), t / (t * t + 1.0).sqrt());
-            for k in 0..3 {
-                let (akp, akq) = (a[k][p], a[k][q]);
-                a[k][p] = c * akp - s * akq;
-                a[k][q] = s * akp + c * akq;
-            }
-            for k in 0..3 {
-                let (apk, aqk) = (a[p][k], a[q][k]);
-                a[p][k] = c * apk - s * aqk;
-                a[q][k] = s * apk + c * aqk;
-            }
-            for row in v.iter_mut() {
-                let (vp, vq) = (row[p], row[q]);
-                row[p] = c * vp - s * vq;
-                row[q] = s * vp + c * vq;
-            }
-        }
-    }
-    let vals = [a[0][0], a[1][1], a[2][2]];
-    let vecs = [0, 1, 2].map(|k| [v[0][k], v[1][k], v[2][k]]);
-    (vals, vecs)
-}
-
-/// The median absolute deviation from the median.
-fn mad(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let med = v[v.len() / 2];
-    let mut dev: Vec<f64> = v.iter().map(|x| (x - med).abs()).collect();
-    dev.sort_by(f64::total_cmp);
-    dev[dev.len() / 2]
 }
 
 /// The `k` nearest other points of each point (by distance, then index), from a hash grid
@@ -276,32 +229,4 @@ fn nearest(pts: &[[f64; 3]], k: usize) -> Vec<Vec<usize>> {
             cand[..k].iter().map(|c| c.1).collect()
         })
         .collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// `A v = lambda v` with orthonormal `v`, for a few symmetric matrices.
-    #[test]
-    fn symmetric_eigen_decomposes() {
-        for a in [
-            [[2.0, 1.0, 0.5], [1.0, 3.0, -0.2], [0.5, -0.2, 1.0]],
-            [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            [[0.01, 0.0, 0.0], [0.0, 4.0, 4.0], [0.0, 4.0, 4.0]],
-        ] {
-            let (vals, vecs) = symmetric_eigen(a);
-            for k in 0..3 {
-                let v = vecs[k];
-                for i in 0..3 {
-                    let av: f64 = (0..3).map(|j| a[i][j] * v[j]).sum();
-                    assert!((av - vals[k] * v[i]).abs() < 1e-12, "{a:?} {k}");
-                }
-                for l in 0..3 {
-                    let d: f64 = (0..3).map(|i| vecs[k][i] * vecs[l][i]).sum();
-                    assert!((d - f64::from(u8::from(k == l))).abs() < 1e-12);
-                }
-            }
-        }
-    }
 }

@@ -368,17 +368,7 @@ pub fn noise_floor(
             plane_distances(group, eye, spacing, &mut planar);
         }
     }
-    let robust_sigma = |d: Vec<f64>| -> Option<f64> {
-        if d.len() < 8 {
-            return None;
-        }
-        let mut d = d;
-        d.sort_by(f64::total_cmp);
-        let med = d[d.len() / 2];
-        let mut dev: Vec<f64> = d.iter().map(|x| (x - med).abs()).collect();
-        dev.sort_by(f64::total_cmp);
-        Some(1.4826 * dev[dev.len() / 2])
-    };
+    let robust_sigma = |mut d: Vec<f64>| (d.len() >= 8).then(|| 1.4826 * mad(&mut d));
     let (ns, np) = (second.len() as f64, planar.len() as f64);
     let a = match (robust_sigma(second), robust_sigma(temporal)) {
         (Some(x), Some(y)) => Some(x.min(y) / 6f64.sqrt()),
@@ -391,6 +381,16 @@ pub fn noise_floor(
         (None, Some(b)) => b,
         (None, None) => 0.0,
     }
+}
+
+/// The median absolute deviation from the median of `v` (non-empty; sorts `v`):
+/// `1.4826 MAD` estimates a Gaussian's deviation, ignoring up to half the values.
+pub(super) fn mad(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let med = v[v.len() / 2];
+    let mut dev: Vec<f64> = v.iter().map(|x| (x - med).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    dev[dev.len() / 2]
 }
 
 /// The distance along the viewing ray per pixel of `cam` of the points it saw.
