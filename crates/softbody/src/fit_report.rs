@@ -1,24 +1,21 @@
 //! The pictures of a fit report: cost per iteration, each parameter per iteration, and the rms
 //! per frame before and after.
 
-use crate::plot::{grid_of, palette, svg_grid, Chart, Figure, Series, Style};
+use crate::plot::{palette, Chart, Figure, Picture, Series, Style};
 use adjoint::problem::Evaluation;
 use serde_json::{json, Value};
 use std::path::Path;
 
-/// Writes `charts`, `columns` per row ([`grid_of`]; one chart alone as it is), as the PNG
+/// Writes `charts`, `columns` per row ([`Picture::grid`]; one chart alone as it is), as the PNG
 /// `path` and its SVG twin (`path` with the extension `svg`).
 pub fn save_charts(charts: &[Chart], columns: usize, path: &Path) -> Result<(), String> {
-    let (png, svg) = match charts {
-        [one] => (one.render(), one.render_svg()),
-        _ => (
-            grid_of(charts.iter().map(Chart::render).collect(), columns),
-            svg_grid(charts.iter().map(Chart::render_svg).collect(), columns),
-        ),
+    // each chart drawn once, into both forms
+    let mut pictures: Vec<Picture> = charts.iter().map(Figure::picture).collect();
+    let picture = match pictures.len() {
+        1 => pictures.remove(0),
+        _ => Picture::grid(pictures, columns),
     };
-    png.save_png(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    svg.save(&path.with_extension("svg"))
+    picture.save(path)
 }
 
 /// The rms-per-frame chart of two evaluations.

@@ -203,13 +203,12 @@ fn summary(
     rig: &RigParams,
     run: &ObservationRun,
     frames: &[usize],
+    [out, camera_file]: [&std::path::Path; 2],
     preview_path: Option<String>,
 ) -> Value {
     let (obs, cameras, target) = (&run.observations, &run.cameras, run.target);
     let last = frames[frames.len() - 1];
-    let out = out_path(a);
-    let camera_file = adjoint::fit::cameras_path(&out).display().to_string();
-    let out = out.display().to_string();
+    let (out, camera_file) = (out.display().to_string(), camera_file.display().to_string());
     let per_frame: Vec<usize> = frames.iter().map(|&f| obs.frame(f).len()).collect();
     let mut per_camera = vec![0usize; cameras.len()];
     for (_, pts) in obs.frames() {
@@ -303,7 +302,7 @@ pub fn run(a: Args) -> Result<(), String> {
         }
         _ => None,
     };
-    let mut summary = summary(&a, &rig, &run, &frames, preview_path);
+    let mut summary = summary(&a, &rig, &run, &frames, [&out, &cams_path], preview_path);
     summary["seconds"]["total"] = json!(t_total.elapsed().as_secs_f64());
     files.commit()?;
     if a.json {

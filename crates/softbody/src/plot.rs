@@ -17,8 +17,8 @@ mod tests;
 
 pub use axis::Axis;
 use axis::{fmt_compact, padded};
-pub use canvas::{svg_grid, Picture, Svg};
 pub(crate) use canvas::{Canvas, SvgCanvas};
+pub use canvas::{Picture, Svg};
 use cutfem::render::{Image, GLYPH_HEIGHT};
 use raster::{tw, Layer, Plot};
 

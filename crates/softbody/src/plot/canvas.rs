@@ -107,6 +107,15 @@ impl Picture {
         self.svg.save(&path.with_extension("svg"))
     }
 
+    /// `parts`, `columns` per row, placed as [`super::grid_of`] places images.
+    pub fn grid(parts: Vec<Picture>, columns: usize) -> Picture {
+        let (pngs, svgs): (Vec<Image>, Vec<Svg>) = parts.into_iter().map(|p| (p.png, p.svg)).unzip();
+        Picture {
+            png: super::grid_of(pngs, columns),
+            svg: svg_grid(svgs, columns),
+        }
+    }
+
     /// `parts` one under the other, centred, on white ([`super::stack`]).
     pub fn stack(parts: &[Picture]) -> Picture {
         let images: Vec<&Image> = parts.iter().map(|p| &p.png).collect();

@@ -1,6 +1,7 @@
 //! The SVG twin of a chart: the same size and layout as the raster picture, every element
 //! balanced, lines and markers inside the plot, text escaped.
 
+use super::canvas::svg_grid;
 use super::*;
 
 /// `(x, y)` pairs of every `points="..."` and `cx/cy` of the document.
