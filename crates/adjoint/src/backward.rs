@@ -45,6 +45,8 @@ pub struct PhysicalGradient {
     pub damping_mass: f64,
     /// Rayleigh `alpha_2`
     pub damping_stiffness: f64,
+    /// the drag coefficient `c` ([`cutfem::fem::NodalDamping`])
+    pub drag: f64,
     /// gravity vector
     pub gravity: Vec3<f64>,
     /// ground normal (as a free vector; the caller projects it)
@@ -153,6 +155,16 @@ impl Stage<'_> {
         grad.density += (cm * lam_m_du + lam_m_v / theta + dt * lam_m_g) / model.density;
         grad.damping_mass += lam_m_du;
         grad.damping_stiffness += k_lam.ex().dot(u - u_next);
+        // the drag's `c W (u' - u)`: `b` has `c W u`, `A` has `c W`
+        if let Some(d) = &model.drag {
+            let w = d.weights.as_slice();
+            let ls = lam.as_slice();
+            for (i, ub) in u_bar.as_mut_slice().iter_mut().enumerate() {
+                *ub = *ub + ls[i] * (d.coefficient * w[i]);
+            }
+            let (us, un) = (u.as_slice(), u_next.as_slice());
+            grad.drag += (0..w.len()).map(|i| w[i] * ls[i].dot(us[i] - un[i])).sum::<f64>();
+        }
         grad.gravity = grad.gravity + s * dt;
         if let Some(ext) = &model.external_force {
             grad.external.resize(ext.len(), 0.0);

@@ -57,6 +57,8 @@ pub enum Param {
     /// the count is taken from the model by [`ParamSet::layout`] (0 until then, see
     /// [`Param::EXTERNAL_FORCE`])
     ExternalForce(usize),
+    /// the drag coefficient (log): traction per unit velocity on the surface
+    Drag,
 }
 
 impl Param {
@@ -66,7 +68,7 @@ impl Param {
 }
 
 /// The vocabulary, in the order of [`Param`].
-pub const ALL: [Param; 11] = [
+pub const ALL: [Param; 12] = [
     Param::Young,
     Param::Poisson,
     Param::Density,
@@ -78,6 +80,7 @@ pub const ALL: [Param; 11] = [
     Param::InitialAngularVelocity,
     Param::StiffnessField,
     Param::EXTERNAL_FORCE,
+    Param::Drag,
 ];
 
 impl Param {
@@ -95,6 +98,7 @@ impl Param {
             Param::InitialAngularVelocity => "initial_angular_velocity",
             Param::StiffnessField => "stiffness_field",
             Param::ExternalForce(_) => "external_force",
+            Param::Drag => "drag",
         }
     }
     /// The names of its components (the external force's: `external_force[k]`; its reports use
@@ -207,9 +211,11 @@ impl ParamSet {
         let mut out = Vec::new();
         for p in &self.params {
             match p {
-                Param::Young | Param::Density | Param::DampingMass | Param::DampingStiffness => {
-                    out.push(true)
-                }
+                Param::Young
+                | Param::Density
+                | Param::DampingMass
+                | Param::DampingStiffness
+                | Param::Drag => out.push(true),
                 _ => out.extend(vec![false; self.component_count(*p)]),
             }
         }
@@ -240,7 +246,7 @@ impl ParamSet {
                 out.push(match p {
                     Param::Young | Param::Density => (x - 100f64.ln(), x + 100f64.ln()),
                     Param::Poisson => (logit(0.01), logit(0.49)),
-                    Param::DampingMass | Param::DampingStiffness => (1e-6f64.ln(), 1e4f64.ln()),
+                    Param::DampingMass | Param::DampingStiffness | Param::Drag => (1e-6f64.ln(), 1e4f64.ln()),
                     Param::StiffnessField => (-100f64.ln(), 100f64.ln()),
                     _ => (f64::NEG_INFINITY, f64::INFINITY),
                 });

@@ -5,6 +5,12 @@
 //!   pixels, depth noise 0.002, seed 0) against the model `examples/scenes/fit/torus_material.toml`
 //!   (E = 2200, nu = 0.32 to fit; nothing hidden), with the default settings of `softbody
 //!   diagnose`.
+//! * `diagnose bar`: the diagnosis issue's speed case. A bar 1.05 x 0.22 x 0.22 clamped at one
+//!   end swings under gravity with hidden mass damping 0.8 (the truth simulated at resolution
+//!   30), 80 steps, 300 points per frame drawn uniformly by area with isotropic noise 0.01
+//!   ([`adjoint::observe::sample_surface`], no cameras); the model at resolution 20 without
+//!   damping, fitting `young, poisson`. Timed as a user runs it: the `softbody diagnose`
+//!   binary (built beside `tables`), its discretisation check included.
 //! * `demo`: the `softbody demo` binary (built beside `tables`), run as a child process.
 
 use crate::progress;
@@ -82,7 +88,81 @@ fn diagnose_row() -> Result<Row, String> {
     })
 }
 
-fn demo_row() -> Result<Row, String> {
+/// The bar of the diagnosis issue's speed case at `resolution`, with `[model].effects` and
+/// `damping` (mass) when given.
+fn bar_scene(resolution: f64, damping: Option<f64>) -> String {
+    let (effects, section) = match damping {
+        Some(a) => (
+            "\"gravity\", \"damping\"",
+            format!("[damping]\nmass = {a}\nstiffness = 0.0\n"),
+        ),
+        None => ("\"gravity\"", String::new()),
+    };
+    format!(
+        "[body]\nresolution = {resolution}\nshape = {{ kind = \"box\", center = [0.525, 1.0, 0.0], size = [1.05, 0.22, 0.22] }}\n\n\
+         [material]\nyoung = 2400.0\npoisson = 0.35\ndensity = 1.0\n\n{section}\
+         [gravity]\nacceleration = [0.0, -10.0, 0.0]\n\n\
+         [[dirichlet]]\nmin = [-0.02, 0.8, -0.2]\nmax = [0.02, 1.2, 0.2]\n\n\
+         [time]\ndt = 0.02\nsteps = {BAR_STEPS}\n\n[model]\neffects = [{effects}]\n"
+    )
+}
+
+/// Steps of the bar case.
+const BAR_STEPS: usize = 80;
+
+fn bar_row() -> Result<Row, String> {
+    let bin = softbody_binary()?;
+    let dir = std::env::temp_dir().join(format!("tables-bar-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let truth_path = dir.join("truth.toml");
+    let model_path = dir.join("bar.toml");
+    let obs_path = dir.join("bar.csv");
+    let write = |p: &Path, s: String| std::fs::write(p, s).map_err(|e| format!("{}: {e}", p.display()));
+    write(&truth_path, bar_scene(30.0, Some(0.8)))?;
+    write(&model_path, bar_scene(20.0, None))?;
+    progress("D: simulating the hidden-damping bar");
+    let truth = Scene::load(&truth_path).map_err(|e| e.to_string())?;
+    let mut sim = truth.build_simulation().map_err(|e| e.to_string())?;
+    let surface = sim.grid.surface().map_err(|e| e.to_string())?;
+    let mut obs = adjoint::observations::Observations::new();
+    for f in 1..=BAR_STEPS {
+        sim.step().map_err(|e| format!("truth step {f}: {e}"))?;
+        let mesh = sim.grid.deformed(&surface, &sim.u);
+        for p in adjoint::observe::sample_surface(&mesh, 300, 0.01, 0, f) {
+            obs.push(f, adjoint::observations::ObservedPoint::new(p));
+        }
+    }
+    obs.write_csv(&obs_path).map_err(|e| e.to_string())?;
+    progress("D: softbody diagnose on the bar");
+    let t = Instant::now();
+    let o = std::process::Command::new(&bin)
+        .arg("diagnose")
+        .arg(&model_path)
+        .arg("--observations")
+        .arg(&obs_path)
+        .args(["--json", "--out"])
+        .arg(dir.join("report"))
+        .output()
+        .map_err(|e| format!("{}: {e}", bin.display()))?;
+    let seconds = t.elapsed().as_secs_f64();
+    let _ = std::fs::remove_dir_all(&dir);
+    if !o.status.success() {
+        return Err(String::from_utf8_lossy(&o.stderr).trim().to_string());
+    }
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).map_err(|e| e.to_string())?;
+    Ok(Row {
+        case: format!("diagnose: bar r = 20, {BAR_STEPS} steps, 300 points per frame (damping hidden)"),
+        seconds,
+        goal_s: 120.0,
+        rms: v["rms"].as_f64(),
+        rms_after: v["candidates"][0]["rms_after"].as_f64(),
+        missing_effect: v["missing_effect"].as_str().map(str::to_string),
+        error: None,
+    })
+}
+
+/// The `softbody` binary beside this one.
+fn softbody_binary() -> Result<PathBuf, String> {
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let bin = exe.with_file_name(format!("softbody{}", std::env::consts::EXE_SUFFIX));
     if !bin.exists() {
@@ -91,6 +171,11 @@ fn demo_row() -> Result<Row, String> {
             bin.display()
         ));
     }
+    Ok(bin)
+}
+
+fn demo_row() -> Result<Row, String> {
+    let bin = softbody_binary()?;
     let out = std::env::temp_dir().join(format!("tables-demo-{}", std::process::id()));
     progress("D: softbody demo");
     let t = Instant::now();
@@ -130,6 +215,7 @@ pub fn table(quick: bool) -> Vec<Row> {
     let mut rows = Vec::new();
     if !quick {
         rows.push(diagnose_row().unwrap_or_else(|e| fail("diagnose: swinging torus", 120.0, e)));
+        rows.push(bar_row().unwrap_or_else(|e| fail("diagnose: bar", 120.0, e)));
     }
     rows.push(demo_row().unwrap_or_else(|e| fail("softbody demo", 180.0, e)));
     rows

@@ -36,6 +36,8 @@ fn failing_cg(preconditioner: Preconditioner, fallback: bool) -> SolverSettings 
     let mut s = SolverSettings {
         preconditioner,
         fallback,
+        // every step's CG must run (and fail): no direct solve of the repeated matrix
+        reuse_factor: false,
         ..SolverSettings::default()
     };
     s.cg.tolerance = 0.0;

@@ -50,10 +50,12 @@
 pub mod camera;
 pub mod raster;
 pub mod rng;
+pub mod samples;
 
 pub use camera::DepthCamera;
 pub use raster::{render_depth, DepthImage};
 pub use rng::SplitMix64;
+pub use samples::sample_surface;
 
 use crate::observations::{Observations, ObservedPoint};
 use crate::Error;

@@ -11,7 +11,7 @@ use super::DAMPING_FLOOR;
 use super::{ground_angles, ground_normal, young_poisson_gradient, FieldBasis, Param, ParamSet};
 use crate::backward::PhysicalGradient;
 use crate::Error;
-use cutfem::fem::{ExternalForce, Ground, Model};
+use cutfem::fem::{ExternalForce, Ground, Model, NodalDamping};
 use gpumat::Vec3;
 use std::sync::Arc;
 
@@ -31,6 +31,8 @@ enum Slot {
     StiffnessField(Arc<FieldBasis>),
     /// the base model's force: its basis fields and labels
     ExternalForce(ExternalForce),
+    /// the base model's drag: its nodal weights
+    Drag(NodalDamping),
 }
 
 /// A checked [`ParamSet`] ([`ParamSet::layout`]); it reads as its set (`Deref`).
@@ -81,6 +83,9 @@ impl ParamSet {
                     *p = Param::ExternalForce(e.len());
                     Slot::ExternalForce(e)
                 }
+                Param::Drag => Slot::Drag(model.drag.clone().ok_or_else(|| {
+                    Error::invalid("fitting `drag` needs a [drag] section and `drag` in [model].effects")
+                })?),
             });
         }
         Ok(Layout { set, slots })
@@ -117,6 +122,7 @@ impl Layout {
                 // fits start from the homogeneous material (all factors 1)
                 Slot::StiffnessField(f) => x.extend(vec![0.0; f.len()]),
                 Slot::ExternalForce(base) => x.extend(force(model, base).coefficients.iter().copied()),
+                Slot::Drag(base) => x.push(drag(model, base).coefficient.max(DAMPING_FLOOR).ln()),
             }
         }
         x
@@ -151,6 +157,10 @@ impl Layout {
                     let e = model.external_force.get_or_insert_with(|| base.clone());
                     let n = e.len();
                     e.coefficients.copy_from_slice(take(n));
+                }
+                Slot::Drag(base) => {
+                    let c = take(1)[0].exp();
+                    model.drag.get_or_insert_with(|| base.clone()).coefficient = c;
                 }
             }
         }
@@ -190,6 +200,7 @@ impl Layout {
                         if s.is_empty() { 1.0 } else { hi },
                     ));
                 }
+                Slot::Drag(base) => out.push((name(), drag(model, base).coefficient)),
                 Slot::ExternalForce(base) => {
                     let e = force(model, base);
                     out.extend(e.labels.iter().cloned().zip(e.coefficients.iter().copied()));
@@ -221,6 +232,7 @@ impl Layout {
                 Slot::InitialAngularVelocity => out.extend(g.initial_angular_velocity.to_array()),
                 Slot::StiffnessField(f) => out.extend(field_chain(f, model, g)),
                 Slot::ExternalForce(base) => out.extend(force_gradient(base, g)),
+                Slot::Drag(base) => out.push(g.drag * drag(model, base).coefficient),
             }
         }
         out
@@ -245,6 +257,7 @@ impl Layout {
                 }
                 Slot::StiffnessField(f) => out.extend(vec![1.0; f.len()]),
                 Slot::ExternalForce(base) => out.extend(vec![1.0; base.len()]),
+                Slot::Drag(base) => out.push(drag(model, base).coefficient),
             }
         }
         out
@@ -275,6 +288,7 @@ impl Layout {
                 Slot::ExternalForce(base) => {
                     out.extend(base.labels.iter().cloned().zip(force_gradient(base, g)))
                 }
+                Slot::Drag(_) => out.push((name(), g.drag)),
             }
         }
         out
@@ -284,6 +298,11 @@ impl Layout {
 /// The model's external force, or the base's when the model has none.
 fn force<'a>(model: &'a Model, base: &'a ExternalForce) -> &'a ExternalForce {
     model.external_force.as_ref().unwrap_or(base)
+}
+
+/// The model's drag, or the base's when the model has none.
+fn drag<'a>(model: &'a Model, base: &'a NodalDamping) -> &'a NodalDamping {
+    model.drag.as_ref().unwrap_or(base)
 }
 
 /// `dJ/dc_k` of the external force (zeros when no step was taken).

@@ -17,7 +17,8 @@ pub use assembly::{Assembler, Material};
 pub use collision::Ground;
 pub use grid::{Cell, Grid};
 pub use model::{
-    Aabb, ExternalForce, Model, NewmarkCoefficients, NitschePenalty, NitscheQuadrature, DEFAULT_NITSCHE_GAMMA,
+    Aabb, ExternalForce, Model, NewmarkCoefficients, NitschePenalty, NitscheQuadrature, NodalDamping,
+    DEFAULT_NITSCHE_GAMMA,
 };
 pub use sim::{NitscheFace, Simulation, StepInfo};
 pub use solver::{LinearSolver, Preconditioner, SolveInfo, SolverSettings};

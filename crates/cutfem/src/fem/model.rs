@@ -12,6 +12,18 @@ use crate::error::Error;
 use gpumat::{Matrix, Vec3};
 use std::sync::Arc;
 
+/// A damping force with fixed nodal weights, `f_i = -c w_i v_i` (air drag: `w_i = A_i`, the
+/// node's share of the surface area, so that `c` is a traction per unit velocity). It joins the
+/// mass damping in the Newmark system: `A_ii += c w_i I`, `b_i += c w_i u_i` (module
+/// [`crate::fem::assembly`]'s Newmark docs), i.e. the force `-c W (u' - u) / dt` of the step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodalDamping {
+    /// `w_i`, one per degree of freedom (shared: fixed while a fit moves `c`)
+    pub weights: Arc<Vec<f64>>,
+    /// `c >= 0`
+    pub coefficient: f64,
+}
+
 /// A state-independent nodal force linear in its coefficients: `f = sum_k c_k F_k`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExternalForce {
@@ -151,6 +163,9 @@ pub struct Model {
     pub stiffness_scale: Option<std::sync::Arc<[f64]>>,
     /// a state-independent nodal force linear in its coefficients (module docs; `None`: none)
     pub external_force: Option<ExternalForce>,
+    /// a velocity-proportional damping force with fixed nodal weights (the `drag` effect;
+    /// `None`: none)
+    pub drag: Option<NodalDamping>,
     /// time step of the integrator (a scene's `time.dt / time.substeps`)
     pub dt: f64,
     /// Newmark-1 theta in [0.5, 1)
@@ -305,6 +320,7 @@ impl Default for Model {
             initial_angular_velocity: Vec3::default(),
             stiffness_scale: None,
             external_force: None,
+            drag: None,
             dt: 0.01,
             theta: 0.6,
             substeps: 1,
@@ -396,6 +412,14 @@ impl Model {
                 return bad("model.external_force", why);
             }
         }
+        if let Some(d) = &self.drag {
+            if !(d.coefficient >= 0.0 && d.coefficient.is_finite()) {
+                return bad("drag.coefficient", format!("must be >= 0, got {}", d.coefficient));
+            }
+            if let Some(w) = d.weights.iter().find(|w| !(**w >= 0.0 && w.is_finite())) {
+                return bad("model.drag", format!("weights must be >= 0, got {w}"));
+            }
+        }
         for (i, b) in self.dirichlet.iter().enumerate() {
             if !(0..3).all(|d| b.min[d] <= b.max[d]) {
                 return bad(&format!("dirichlet[{i}]"), "min must not exceed max".into());
@@ -404,8 +428,15 @@ impl Model {
         Ok(())
     }
 
-    /// Errors unless the external force, if any, has one value per degree of freedom.
+    /// Errors unless the external force and the drag, if any, have one value per degree of
+    /// freedom.
     pub fn check_external_dofs(&self, dofs: usize) -> Result<(), Error> {
+        if let Some(d) = self.drag.as_ref().filter(|d| d.weights.len() != dofs) {
+            return Err(Error::Invalid(format!(
+                "model.drag: {} weights for {dofs} degrees of freedom",
+                d.weights.len()
+            )));
+        }
         self.external_force
             .as_ref()
             .map_or(Ok(()), |e| e.check_dofs(dofs))

@@ -145,6 +145,7 @@ impl Simulation {
         self.contact.clear();
         self.contact_at = None;
         self.k.forget();
+        self.linear.new_run();
         Ok(())
     }
 
@@ -170,6 +171,7 @@ impl Simulation {
         }
         self.model = model;
         self.k.forget();
+        self.linear.model_changed();
         Ok(())
     }
 
@@ -417,13 +419,16 @@ impl Simulation {
 
     /// Solves `A x = rhs` with the Newmark matrix of the last [`Simulation::assemble_system`]
     /// and the simulation's solver settings, starting from `x` (the adjoint solve of the
-    /// backward pass: `A` is symmetric). Returns `(iterations, relative residual, fallback)`.
+    /// backward pass: `A` is symmetric). The solver's state is the forward steps' (a repeated
+    /// matrix's factor serves both, [`crate::fem::solver`]). Returns `(iterations, relative
+    /// residual, fallback)`.
     pub fn solve_newmark(
-        &self,
+        &mut self,
         rhs: &Matrix<Vec3<f64>>,
         x: &mut Matrix<Vec3<f64>>,
     ) -> Result<(usize, f64, bool), Error> {
-        solve(&self.a, rhs, x, &self.solver)
+        let si = self.linear.solve(&self.a, rhs, x, &self.solver)?;
+        Ok((si.iterations, si.residual, si.fallback))
     }
 
     /// The per-cell rotations of the last assembly (`None` without corotation).

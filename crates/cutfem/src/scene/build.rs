@@ -73,6 +73,7 @@ impl Scene {
         s.cg.tolerance = self.numerics.cg_tolerance;
         s.cg.max_iterations = self.numerics.cg_max_iterations;
         s.preconditioner = self.numerics.preconditioner;
+        s.reuse_factor = self.numerics.reuse_factor;
         s
     }
 }

@@ -32,6 +32,11 @@ pub struct NumericsSection {
     /// thesis') or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
     pub preconditioner: crate::fem::Preconditioner,
+    /// factor a Newmark matrix met twice in a row (a linear model without contact: the same at
+    /// every step, forward, adjoint and tangent) and solve directly while it stays the same
+    /// (default true; [`crate::fem::solver`])
+    #[serde(default = "reuse_factor")]
+    pub reuse_factor: bool,
     /// the grid element: "incompatible" (default), "trilinear" (the thesis'),
     /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
     #[serde(default)]
@@ -57,6 +62,9 @@ fn cg_tol() -> f64 {
 fn cg_max() -> usize {
     crate::fem::SolverSettings::default().cg.max_iterations
 }
+fn reuse_factor() -> bool {
+    crate::fem::SolverSettings::default().reuse_factor
+}
 fn surface_subdivision() -> usize {
     DEFAULT_SURFACE_SUBDIVISION
 }
@@ -80,6 +88,7 @@ impl Default for NumericsSection {
             cg_max_iterations: cg_max(),
             diffusion: Default::default(),
             preconditioner: crate::fem::Preconditioner::default(),
+            reuse_factor: reuse_factor(),
             element: crate::fem::element::Element::default(),
             surface_subdivision: surface_subdivision(),
             surface_method: Default::default(),

@@ -44,6 +44,13 @@ impl<M: BlockScalar> SparseCholesky<M> {
     /// `order[k]` is the block row eliminated `k`-th (a permutation of `0..rows`); `None` is
     /// faer's AMD.
     pub fn with_ordering(a: &SparseMatrix<M>, order: Option<&[usize]>) -> Result<Self, Error> {
+        Self::analyse(a, order)?.factored(a)
+    }
+
+    /// The symbolic analysis alone (ordering, elimination tree, the factor's size
+    /// [`SparseCholesky::factor_nnz`]), so that a caller can decide whether to factor; it
+    /// solves nothing until [`SparseCholesky::factored`] or [`SparseCholesky::refactor`].
+    pub fn analyse(a: &SparseMatrix<M>, order: Option<&[usize]>) -> Result<Self, Error> {
         let p = a.pattern();
         if p.rows() != p.cols() {
             return Err(Error::NotSquare {
@@ -62,7 +69,7 @@ impl<M: BlockScalar> SparseCholesky<M> {
         };
         let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ordering, Default::default())
             .map_err(|e| Error::Factorization(format!("{e:?}")))?;
-        let mut this = Self {
+        Ok(Self {
             pattern: p.clone(),
             n,
             col_ptr,
@@ -70,9 +77,13 @@ impl<M: BlockScalar> SparseCholesky<M> {
             symbolic: Arc::new(symbolic),
             factors: Vec::new(),
             _m: std::marker::PhantomData,
-        };
-        this.refactor(a)?;
-        Ok(this)
+        })
+    }
+
+    /// This analysis with the numeric factors of `a` ([`SparseCholesky::refactor`]).
+    pub fn factored(mut self, a: &SparseMatrix<M>) -> Result<Self, Error> {
+        self.refactor(a)?;
+        Ok(self)
     }
 
     /// Redoes the numeric factorization with new values on the same pattern (the symbolic

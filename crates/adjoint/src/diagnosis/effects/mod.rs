@@ -10,6 +10,7 @@
 //! | `corotation` | `R K (R^T x - X)` (eq. 4.4.6-4.4.9) | `local` polar-decomposition adjoint | none | linear elasticity | switch and compare |
 //! | `stiffness_field` | per-cell factor on `E` | `backward`: per-cell `dJ/ds_e` | `stiffness_field` (coarse log factors) | all factors 1 | score |
 //! | `initial_velocity` | `v(0) = v0 + w x (X - c)` | `backward`: `dJ/dv(0)` | `initial_velocity`, `initial_angular_velocity` | `0` | score |
+//! | `drag` | traction `-c v` on the surface: damping matrix `c W`, `W = diag(A_i)` ([`drag`]) | `backward`: `dJ/dc = sum_t lam_t . W (u_t - u_t+1)` | `drag` (1) | `c = 0` | score |
 //! | `wind` (extended) | external force `sum_d w_d A_i e_d` ([`wind`]) | `backward`: `dJ/dc_k = dt sum_t lam_t . F_k` | `external_force` (3) | `w = 0` | score |
 //!
 //! A **score** probe evaluates the gradient and the Gauss-Newton matrix of the effect's
@@ -37,6 +38,7 @@
 
 mod corotation;
 mod damping;
+mod drag;
 mod gravity;
 mod ground;
 mod initial_velocity;
@@ -45,6 +47,7 @@ pub mod wind;
 
 pub use corotation::Corotation;
 pub use damping::Damping;
+pub use drag::Drag;
 pub use gravity::Gravity;
 pub use ground::GroundContact;
 pub use initial_velocity::InitialVelocity;
@@ -109,6 +112,7 @@ pub fn catalogue() -> Vec<Box<dyn Effect>> {
         Box::new(Corotation),
         Box::new(StiffnessField::default()),
         Box::new(InitialVelocity),
+        Box::new(Drag),
     ]
 }
 

@@ -1,7 +1,9 @@
 //! The Newmark-1 system with Rayleigh damping (thesis eq. 2.6.2, see [`crate::fem::sim`]):
 //!
 //! `A = cm M + ck K`, `b = cm M u + cu K u + M v / theta + dt f` with `cm = 1/(theta dt) + a1`,
-//! `ck = a2 + theta dt`, `cu = a2 - (1-theta) dt`.
+//! `ck = a2 + theta dt`, `cu = a2 - (1-theta) dt`. A nodal damping force `-c W v`
+//! ([`crate::fem::NodalDamping`], the `drag` effect) joins the mass damping `a1 M`: `A += c W`,
+//! `b += c W u`.
 //!
 //! [`newmark_system`] fills both from a complete `K` in one pass over its rows (the tet
 //! simulation's path): each task owns a fixed block of rows, reads each block of its rows
@@ -24,6 +26,8 @@ pub(crate) struct Coefficients {
     pub(crate) dt: f64,
     /// `(cm M)_rc` off the diagonal: `0 cm`
     pub(crate) off: Mat3<f64>,
+    /// the nodal damping's `(W, c)`, if any
+    pub(crate) drag: Option<(Arc<Vec<f64>>, f64)>,
 }
 
 impl Coefficients {
@@ -37,12 +41,26 @@ impl Coefficients {
             cv: c.cv,
             dt: c.dt,
             off: Mat3::ZERO.scale(c.cm),
+            drag: model.drag.as_ref().map(|d| (d.weights.clone(), d.coefficient)),
         }
     }
-    /// `(cm M)_rr` for the lumped mass `m` of row `r`.
+    /// `(cm M + c W)_rr` for the lumped mass `m` of row `r`.
     #[inline(always)]
-    pub(crate) fn diagonal(&self, m: f64) -> Mat3<f64> {
-        Mat3::from_scalar(m).scale(self.cm)
+    pub(crate) fn diagonal(&self, r: usize, m: f64) -> Mat3<f64> {
+        let d = Mat3::from_scalar(m).scale(self.cm);
+        match &self.drag {
+            Some((w, c)) => d.add(Mat3::from_scalar(c * w[r])),
+            None => d,
+        }
+    }
+    /// `(cm M u + c W u)_r` for the lumped mass `m` and displacement `u` of row `r`.
+    #[inline(always)]
+    pub(crate) fn mass_u(&self, r: usize, m: f64, u: Vec3<f64>) -> Vec3<f64> {
+        let d = u.scale(m).scale(self.cm);
+        match &self.drag {
+            Some((w, c)) => d.add(u.scale(c * w[r])),
+            None => d,
+        }
     }
 }
 
@@ -62,14 +80,8 @@ pub fn newmark_system(
     b: &mut Matrix<Vec3<f64>>,
 ) {
     assert!(k.batches() == 1, "cutfem::newmark_system: K has one batch");
-    let Coefficients {
-        cm,
-        ck,
-        cu,
-        cv,
-        dt,
-        off,
-    } = Coefficients::new(model);
+    let nw = Coefficients::new(model);
+    let (ck, cu, cv, dt, off) = (nw.ck, nw.cu, nw.cv, nw.dt, nw.off);
     let p = k.pattern().clone();
     let kv = k.values();
     let n = p.rows();
@@ -100,16 +112,11 @@ pub fn newmark_system(
                     for kk in rp[r]..rp[r + 1] {
                         let (k, c) = (kv[kk], cols[kk] as usize);
                         ku = ku.add(k.smul(us[c]));
-                        let m = if c == r {
-                            Mat3::from_scalar(ms[r]).scale(cm)
-                        } else {
-                            off
-                        };
+                        let m = if c == r { nw.diagonal(r, ms[r]) } else { off };
                         av[kk - base] = m.add(k.scale(ck));
                     }
-                    *br = us[r]
-                        .scale(ms[r])
-                        .scale(cm)
+                    *br = nw
+                        .mass_u(r, ms[r], us[r])
                         .add(ku.scale(cu))
                         .add(vs[r].scale(ms[r]).scale(cv))
                         .add(fs[r].scale(dt));

@@ -233,7 +233,7 @@ impl RowSink for StepSink<'_> {
     fn block(&mut self, r: usize, kk: usize, diagonal: bool, k: Mat3<f64>) {
         let nw = self.rows.nw;
         let m = if diagonal {
-            nw.diagonal(self.rows.ms[r])
+            nw.diagonal(r, self.rows.ms[r])
         } else {
             nw.off
         };
@@ -247,7 +247,7 @@ impl RowSink for StepSink<'_> {
     fn row_start(&mut self, r: usize) {
         let (w, nw) = (self.rows, self.rows.nw);
         let m = w.ms[r];
-        self.acc = w.us[r].scale(m).scale(nw.cm).add(w.vs[r].scale(m).scale(nw.cv));
+        self.acc = nw.mass_u(r, m, w.us[r]).add(w.vs[r].scale(m).scale(nw.cv));
     }
 
     #[inline(always)]

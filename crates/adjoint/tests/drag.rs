@@ -1,0 +1,212 @@
+//! The `drag` effect (linear air drag, `f_i = -c A_i v_i`): its physics against the analytic
+//! decay of a body's momentum, its adjoint gradient against central differences of the whole
+//! simulation (every other effect on), and its Gauss-Newton matrix against the Hessian at zero
+//! residual.
+
+use adjoint::cost::DisplacementCost;
+use adjoint::params::ParamSet;
+use adjoint::problem::Problem;
+use cutfem::fem::collision::{ContactScheme, Ground};
+use cutfem::fem::{Aabb, Grid, Model, NodalDamping, Simulation};
+use cutfem::scene::effects::wind::node_areas;
+use cutfem::shapes::Shape;
+use gpumat::Vec3;
+use std::sync::Arc;
+
+const STEPS: usize = 8;
+
+fn grid() -> Grid {
+    let shape = Shape::Box {
+        center: [0.0, 0.25, 0.0],
+        size: [0.6, 0.2, 0.2],
+    };
+    Grid::new(shape.to_sdf(10.0, 6).unwrap()).unwrap()
+}
+
+fn drag(g: &Grid, c: f64) -> Option<NodalDamping> {
+    Some(NodalDamping {
+        weights: Arc::new(node_areas(g)),
+        coefficient: c,
+    })
+}
+
+/// Every effect on: corotation, Rayleigh damping, gravity, ground contact, a clamp, initial
+/// velocities, and drag `c`.
+fn model(c: f64) -> Model {
+    Model {
+        young: 3000.0,
+        poisson: 0.3,
+        density: 1.0,
+        damping_mass: 0.1,
+        damping_stiffness: 0.01,
+        gravity: Vec3::new(0.0, -10.0, 0.0),
+        ground: Some(Ground {
+            normal: Vec3::new(0.0, 1.0, 0.0),
+            height: 0.14,
+            stiffness: 1e3,
+            softness: 60.0,
+            scheme: ContactScheme::Implicit,
+        }),
+        dirichlet: vec![Aabb {
+            min: [-0.4, 0.0, -0.2],
+            max: [-0.22, 0.5, 0.2],
+        }],
+        initial_velocity: Vec3::new(0.1, -0.3, 0.05),
+        initial_angular_velocity: Vec3::new(0.2, 0.1, -0.3),
+        drag: drag(&grid(), c),
+        ..Model::default()
+    }
+}
+
+fn reference(m: Model) -> DisplacementCost {
+    let mut sim = Simulation::new(grid(), m).unwrap();
+    sim.solver.direct = true;
+    let mut out = vec![sim.u.clone()];
+    for _ in 0..STEPS {
+        sim.step().unwrap();
+        out.push(sim.u.clone());
+    }
+    DisplacementCost {
+        reference: (2..=STEPS).step_by(2).map(|t| (t, 1.0, out[t].clone())).collect(),
+    }
+}
+
+fn problem(truth: Model, start: Model, params: &str) -> Problem {
+    let cost = reference(truth);
+    let mut sim = Simulation::new(grid(), start).unwrap();
+    sim.solver.direct = true;
+    Problem::new(sim, ParamSet::parse(&[params]).unwrap(), Box::new(cost), STEPS).unwrap()
+}
+
+/// A free body (no gravity, no clamp, no ground) moving at `v0`: drag is the only external
+/// force. Summed over the nodes the internal forces cancel, so each Newmark step changes the
+/// momentum `P = sum_i m_i v_i` by exactly the drag's impulse, `P' - P = -c sum_i A_i (u'_i -
+/// u_i)` (to the round-off of a stiff solve, 1e-8 of P). A stiff body moves nearly rigidly, `P = m V`, and the trapezoidal rule
+/// with `u' - u = dt (theta V' + (1 - theta) V)` then gives `V_n = V_0 r^n`,
+/// `r = (1 - (1 - theta) k dt) / (1 + theta k dt)`, `k = c A / m` (`A` the surface area, `m` the
+/// mass).
+#[test]
+fn drag_decays_a_free_body_s_momentum_as_the_analytic_rate() {
+    let g = grid();
+    let (c, dt) = (0.2, 0.01);
+    let m = Model {
+        young: 1e7,
+        density: 1.0,
+        corotation: false,
+        initial_velocity: Vec3::new(1.0, 0.5, 0.0),
+        drag: drag(&g, c),
+        dt,
+        ..Model::default()
+    };
+    let mut sim = Simulation::new(g, m).unwrap();
+    sim.solver.direct = true;
+    let w = sim.model.drag.as_ref().unwrap().weights.clone();
+    let area: f64 = w.iter().sum();
+    let mass = sim.total_mass();
+    let momentum = |s: &Simulation| -> Vec3<f64> {
+        s.mass
+            .as_slice()
+            .iter()
+            .zip(s.v.as_slice())
+            .fold(Vec3::default(), |p, (&m, &v)| p + v * m)
+    };
+    let p0 = momentum(&sim);
+    let k = c * area / mass;
+    let theta = sim.model.theta;
+    let r = (1.0 - (1.0 - theta) * k * dt) / (1.0 + theta * k * dt);
+    for n in 1..=40 {
+        let (p_before, u_before) = (momentum(&sim), sim.u.clone());
+        sim.step().unwrap();
+        let p = momentum(&sim);
+        let impulse = u_before
+            .as_slice()
+            .iter()
+            .zip(sim.u.as_slice())
+            .zip(w.iter())
+            .fold(Vec3::default(), |s, ((&a, &b), &wi)| s + (b - a) * (-c * wi));
+        let balance = (p - p_before - impulse).norm() / p0.norm();
+        assert!(balance < 1e-8, "step {n}: momentum balance off by {balance:.2e}");
+        let expected = p0 * r.powi(n);
+        let err = (p - expected).norm() / p0.norm();
+        assert!(
+            err < 1e-6,
+            "step {n}: momentum {p:?} vs {expected:?} (rel {err:.2e})"
+        );
+    }
+    // it did decay noticeably
+    assert!(r.powi(40) < 0.3, "decay factor {}", r.powi(40));
+    // and without drag the momentum is conserved
+    let mut free = Simulation::new(
+        grid(),
+        Model {
+            drag: None,
+            ..sim.model.clone()
+        },
+    )
+    .unwrap();
+    free.solver.direct = true;
+    for _ in 0..40 {
+        free.step().unwrap();
+    }
+    let drift = (momentum(&free) - p0).norm() / p0.norm();
+    assert!(drift < 1e-8, "momentum drift without drag {drift:.2e}");
+}
+
+/// `dJ/dc = sum_t lam_t . W (u_t - u_{t+1})` against central differences, with every other
+/// effect on and the other parameters fitted alongside.
+#[test]
+fn drag_gradient_matches_finite_differences() {
+    let mut p = problem(model(0.8), model(0.5), "young,damping_mass,drag");
+    let x = p.x0();
+    let (ev, g, _) = p.gradient(&x).unwrap();
+    assert!(ev.cost > 0.0);
+    for k in 0..x.len() {
+        let mut best = f64::INFINITY;
+        for eps in [1e-3, 1e-4, 1e-5] {
+            let (mut xp, mut xm) = (x.clone(), x.clone());
+            xp[k] += eps;
+            xm[k] -= eps;
+            let fd = (p.evaluate(&xp).unwrap().cost - p.evaluate(&xm).unwrap().cost) / (2.0 * eps);
+            best = best.min((g[k] - fd).abs() / g[k].abs().max(fd.abs()));
+        }
+        assert!(best < 1e-6, "{}: rel {best:.2e}", p.params.labels()[k]);
+    }
+    assert_eq!(p.params.labels()[2], "drag");
+    assert_eq!(p.params.values(&p.base)[2], ("drag".to_string(), 0.5));
+}
+
+/// The tangent-linear pass differentiates the drag through the model: at zero residual the
+/// Gauss-Newton matrix equals the finite-difference Hessian.
+#[test]
+fn drag_gauss_newton_matrix_is_the_hessian_at_zero_residual() {
+    let mut p = problem(model(0.8), model(0.8), "young,drag");
+    let x = p.x0();
+    let n = x.len();
+    let h = p.gauss_newton_matrix(&x).unwrap();
+    let eps = 1e-4;
+    for b in 0..n {
+        let (mut xp, mut xm) = (x.clone(), x.clone());
+        xp[b] += eps;
+        xm[b] -= eps;
+        let (gp, gm) = (p.gradient(&xp).unwrap().1, p.gradient(&xm).unwrap().1);
+        for a in 0..n {
+            let fd = (gp[a] - gm[a]) / (2.0 * eps);
+            let scale = h[a * n + a].abs().max(h[b * n + b].abs());
+            assert!(
+                (h[a * n + b] - fd).abs() <= 1e-5 * scale,
+                "H[{a}][{b}]: tangent {} vs fd {fd}",
+                h[a * n + b]
+            );
+        }
+    }
+}
+
+/// Fitting `drag` needs the effect in the model; the error says how to switch it on.
+#[test]
+fn fitting_drag_without_it_names_the_section() {
+    let e = ParamSet::parse(&["drag"])
+        .unwrap()
+        .layout(&Model::default())
+        .unwrap_err();
+    assert!(e.to_string().contains("[drag]"), "{e}");
+}
