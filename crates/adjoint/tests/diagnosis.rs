@@ -185,6 +185,19 @@ fn torus_swing_for(effects: &[&str], dt: f64) -> Scene {
     )
 }
 
+/// [`torus_swing_long`] with linear air drag (`c = 1`, about the slowing of the mass damping 8
+/// there: the tube's mass per area is `r / 2 = 0.1`) instead of Rayleigh damping.
+fn torus_drag(effects: &[&str]) -> Scene {
+    scene(
+        TORUS,
+        2000.0,
+        &format!("[gravity]\nacceleration = [0.0, -10.0, 0.0]\n[drag]\ncoefficient = 1.0\n{HOLD_LEFT}"),
+        effects,
+        0.04,
+        10,
+    )
+}
+
 /// A free torus falling onto the ground (its lowest point 0.1 above it), pushed sideways.
 fn torus_drop(effects: &[&str]) -> Scene {
     scene(
@@ -302,6 +315,11 @@ fn torus_hidden_gravity() {
 #[test]
 fn torus_hidden_damping() {
     hidden_case(torus_swing_long, &["gravity", "corotation", "damping"], "damping");
+}
+
+#[test]
+fn torus_hidden_drag() {
+    hidden_case(torus_drag, &["gravity", "corotation", "drag"], "drag");
 }
 
 #[test]

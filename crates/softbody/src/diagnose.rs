@@ -32,7 +32,7 @@ pub struct Args {
     #[arg(long, default_value_t = 12)]
     pub iterations: usize,
     /// Candidates confirmed by a short refit.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 4)]
     pub refits: usize,
     /// Skip the discretisation check (the fitted model again at twice and half the
     /// resolution, `adjoint::refine`).
@@ -82,18 +82,22 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
         reach: None,
     };
     let bar = progress::bar(1, "diagnose", job.quiet);
+    // wall seconds per stage: each progress message starts a stage
+    let mut stages: Vec<(String, Instant)> = Vec::new();
     let d = diagnose(
         job.scene,
         &setup,
         job.params,
         &job.settings,
         &mut |stage, done, total| {
+            stages.push((stage.to_string(), Instant::now()));
             bar.set_length(total as u64);
             bar.set_position(done as u64);
             bar.set_message(stage.to_string());
         },
     )?;
     bar.finish_and_clear();
+    stages.push(("report".into(), Instant::now()));
 
     let hist_path = history::history_path(job.scene_path);
     let mut entry = Entry::now(job.command, d.effects.clone(), d.fitted.clone(), d.rms);
@@ -123,6 +127,7 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
             frames: Some(job.observations.frame_numbers()),
             ..Default::default()
         };
+        stages.push(("discretisation check".into(), Instant::now()));
         Some(crate::refine_check::run(
             job.scene,
             &sim.grid,
@@ -135,6 +140,7 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
         None
     };
     let mut summary = summary_json(&d, &pictures, &hist_path, t0.elapsed().as_secs_f64());
+    summary["stage_seconds"] = stage_seconds(&stages, Instant::now());
     if let Some(v) = discretisation {
         summary["discretisation"] = v;
     }
@@ -186,6 +192,18 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: &Path, seconds
         "files": pictures,
         "seconds": seconds,
     })
+}
+
+/// `[{"stage", "seconds"}]` from the stages' start times, the last one ending at `end`.
+fn stage_seconds(stages: &[(String, Instant)], end: Instant) -> Value {
+    let ends = stages.iter().skip(1).map(|s| s.1).chain(std::iter::once(end));
+    Value::Array(
+        stages
+            .iter()
+            .zip(ends)
+            .map(|((name, start), stop)| json!({"stage": name, "seconds": (stop - *start).as_secs_f64()}))
+            .collect(),
+    )
 }
 
 fn finite(x: f64) -> Value {

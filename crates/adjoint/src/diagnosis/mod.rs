@@ -91,7 +91,7 @@ impl Default for DiagnoseParams {
     fn default() -> Self {
         Self {
             fit_iterations: 12,
-            refits: 3,
+            refits: 4,
             refit_iterations: 8,
             regions: 8,
             bic_threshold: 10.0,

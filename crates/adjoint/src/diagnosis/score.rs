@@ -293,8 +293,12 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
         }
         let mut start = x0.clone();
         let mut best = f64::INFINITY;
+        let mut scene_cost = None;
         for xs in starts {
             if let Ok(e) = problem.evaluate(&xs) {
+                if Some(&xs) == scene_start.as_ref() {
+                    scene_cost = Some(e.cost);
+                }
                 if e.cost < best {
                     best = e.cost;
                     start = xs;
@@ -304,10 +308,12 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
         scan_magnitudes(&mut problem, base.x.len(), &mut start, best);
         let mut fit = fit_problem(&mut problem, &start, iterations);
         // the wrong model's base fit may have wandered off (a body made soft to stop where a
-        // hidden ground stops it), and a start's cost before the effect's values are fitted
-        // says little about where a refit ends: refit from the scene's own values too and keep
-        // the better
-        if let Some(xs) = scene_start.filter(|xs| *xs != start) {
+        // hidden ground stops it, the Poisson ratio pushed to its bound to mimic a hidden drag),
+        // and a start's cost before the effect's values are fitted says little about where a
+        // refit ends: refit from the scene's own values too (their magnitudes scanned as well)
+        // and keep the better
+        if let (Some(mut xs), Some(cost)) = (scene_start.filter(|xs| *xs != start), scene_cost) {
+            scan_magnitudes(&mut problem, base.x.len(), &mut xs, cost);
             if let Ok(other) = fit_problem(&mut problem, &xs, iterations) {
                 if fit.as_ref().map_or(true, |f| other.1.cost < f.1.cost) {
                     fit = Ok(other);

@@ -9,6 +9,7 @@
 
 use super::rng::SplitMix64;
 use cutfem::mesh::TriMesh;
+use cutfem::v3;
 
 /// The stream tag of the samples' draws (the depth noise uses another).
 const SAMPLES: u64 = 0x5a4d_504c_4553;
@@ -27,14 +28,7 @@ pub fn sample_surface(mesh: &TriMesh, count: usize, sigma: f64, seed: u64, frame
     let mut total = 0.0;
     for f in &mesh.faces {
         let [a, b, c] = corners(f);
-        let u = [0, 1, 2].map(|d| b[d] - a[d]);
-        let v = [0, 1, 2].map(|d| c[d] - a[d]);
-        let n = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
-        total += 0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        total += 0.5 * v3::norm(v3::cross(v3::sub(b, a), v3::sub(c, a)));
         cumulative.push(total);
     }
     if !(total > 0.0) {

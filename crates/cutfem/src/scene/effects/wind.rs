@@ -191,7 +191,10 @@ mod tests {
             err.starts_with("wind.toml: line 7: unknown section [gravty]"),
             "{err}"
         );
-        assert!(err.contains("effects with their own section: wind"), "{err}");
+        assert!(
+            err.contains("effects with their own section: drag, wind"),
+            "{err}"
+        );
         let err = model_err("[model]\neffects = [\"magic\"]\n");
         assert!(err.contains("model.effects: unknown effect `magic`"), "{err}");
         // a top-level key that is no section is refused by the scene parser itself
