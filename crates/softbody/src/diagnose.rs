@@ -181,6 +181,7 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: &Path, seconds
         "regions": d.regions,
         "candidates": candidates,
         "missing_effect": d.missing_effect,
+        "alternatives": d.alternatives,
         "verdict": d.verdict,
         "effects": d.effects,
         "fitted": crate::fit::values_json(&d.fitted),

@@ -142,6 +142,10 @@ pub struct Diagnosis {
     pub candidates: Vec<Candidate>,
     /// the missing effect, if any
     pub missing_effect: Option<String>,
+    /// other refitted effects the data cannot tell from the missing one: their `Delta BIC` is
+    /// within [`DiagnoseParams::bic_threshold`] of its (drag and mass damping on a body of
+    /// uniform thickness slow it alike)
+    pub alternatives: Vec<String>,
     /// the verdict in plain words
     pub verdict: String,
     /// the fitted model as given
@@ -295,7 +299,24 @@ pub fn diagnose(
             && c.rms_after.is_some_and(|r| r < settings.min_improvement * rms)
     });
     let missing_effect = missing.map(|c| c.effect.clone());
-    let verdict = verdict(missing, rms, noise_floor, fails, &candidates);
+    let alternatives = match missing.and_then(|c| c.delta_bic) {
+        Some(best) => candidates[1..]
+            .iter()
+            .filter(|c| c.delta_bic.is_some_and(|d| d < best + settings.bic_threshold))
+            .map(|c| c.effect.clone())
+            .collect(),
+        None => Vec::new(),
+    };
+    let mut verdict = verdict(missing, rms, noise_floor, fails, &candidates);
+    if !alternatives.is_empty() {
+        verdict.push_str(&format!(
+            "\n(or {}: the data do not tell {} from {}, Delta BIC within {})",
+            alternatives.join(", "),
+            if alternatives.len() == 1 { "it" } else { "them" },
+            missing_effect.as_deref().unwrap_or(""),
+            settings.bic_threshold
+        ));
+    }
     Ok(Diagnosis {
         effects: on.iter().map(|e| e.name().to_string()).collect(),
         fitted: problem.params.values(&model),
@@ -313,6 +334,7 @@ pub fn diagnose(
         records,
         candidates,
         missing_effect,
+        alternatives,
         verdict,
         model,
         fitted_scene,
@@ -377,13 +399,22 @@ impl Search<'_> {
             if candidates[i].error.is_some() || rank(&candidates[i]) <= 0.0 {
                 continue;
             }
-            // a candidate predicted far worse than one already confirmed cannot win
+            // a candidate predicted far worse than one already confirmed cannot win, unless it
+            // has fewer parameters (at equal rms its Delta BIC is lower; the prediction of a log
+            // coordinate probed near 0, drag or damping, is a poor bound)
             let best = candidates[..i]
                 .iter()
-                .filter_map(|c| c.rms_after)
-                .fold(f64::INFINITY, f64::min);
-            if candidates[i].predicted_rms > 2.0 * best {
-                continue;
+                .filter(|c| c.rms_after.is_some())
+                .min_by(|a, b| {
+                    a.rms_after
+                        .unwrap_or(f64::INFINITY)
+                        .total_cmp(&b.rms_after.unwrap_or(f64::INFINITY))
+                });
+            if let Some(b) = best {
+                let worse = candidates[i].predicted_rms > 2.0 * b.rms_after.unwrap_or(f64::INFINITY);
+                if worse && candidates[i].params.len() >= b.params.len() {
+                    continue;
+                }
             }
             progress(
                 &format!("refit with {}", candidates[i].effect),

@@ -31,7 +31,7 @@ pub fn sample_surface(mesh: &TriMesh, count: usize, sigma: f64, seed: u64, frame
         total += 0.5 * v3::norm(v3::cross(v3::sub(b, a), v3::sub(c, a)));
         cumulative.push(total);
     }
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return Vec::new();
     }
     let mut rng = SplitMix64::stream(seed, &[SAMPLES, frame as u64]);

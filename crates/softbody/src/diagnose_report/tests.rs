@@ -141,6 +141,7 @@ fn diagnosis() -> Diagnosis {
             candidate("initial_velocity", 0.0101, None),
         ],
         missing_effect: Some("gravity".into()),
+        alternatives: Vec::new(),
         verdict: "missing: gravity".into(),
         model: Model::default(),
         fitted_scene: scene,
