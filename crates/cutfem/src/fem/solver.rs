@@ -214,12 +214,15 @@ impl LinearSolver {
 
     /// A fresh Cholesky factor of `a` (nested dissection when positions are known).
     fn factor(&self, a: &SparseMatrix<Mat3<f64>>) -> Result<SparseCholesky<Mat3<f64>>, Error> {
-        let order = self
-            .coords
+        Ok(SparseCholesky::with_ordering(a, self.order(a).as_deref())?)
+    }
+
+    /// The nested-dissection order of `a`'s block rows when the node positions are known.
+    fn order(&self, a: &SparseMatrix<Mat3<f64>>) -> Option<Vec<usize>> {
+        self.coords
             .as_ref()
             .filter(|c| c.len() == a.rows())
-            .map(|c| nested_dissection(a.pattern(), c));
-        Ok(SparseCholesky::with_ordering(a, order.as_deref())?)
+            .map(|c| nested_dissection(a.pattern(), c))
     }
 
     /// Solves `a x = b` from the given `x` (module docs).
@@ -318,12 +321,7 @@ impl LinearSolver {
         &self,
         a: &SparseMatrix<Mat3<f64>>,
     ) -> Result<Option<SparseCholesky<Mat3<f64>>>, gpumat::Error> {
-        let order = self
-            .coords
-            .as_ref()
-            .filter(|c| c.len() == a.rows())
-            .map(|c| nested_dissection(a.pattern(), c));
-        let c = SparseCholesky::analyse(a, order.as_deref())?;
+        let c = SparseCholesky::analyse(a, self.order(a).as_deref())?;
         if c.factor_nnz() > MAX_REUSED_FACTOR {
             return Ok(None);
         }

@@ -13,7 +13,7 @@
 //! ([`super::cells`]) and its row sweep writes `A` ([`super::step`]).
 
 use super::{for_each_item, ROW_CHUNK};
-use crate::fem::model::Model;
+use crate::fem::model::{Model, NodalDamping};
 use gpumat::{Mat3, Matrix, Scalar, ScalarMul, SparseMatrix, Vec3};
 use std::sync::Arc;
 
@@ -26,8 +26,8 @@ pub(crate) struct Coefficients {
     pub(crate) dt: f64,
     /// `(cm M)_rc` off the diagonal: `0 cm`
     pub(crate) off: Mat3<f64>,
-    /// the nodal damping's `(W, c)`, if any
-    pub(crate) drag: Option<(Arc<Vec<f64>>, f64)>,
+    /// the model's nodal damping, if any
+    pub(crate) drag: Option<NodalDamping>,
 }
 
 impl Coefficients {
@@ -41,7 +41,7 @@ impl Coefficients {
             cv: c.cv,
             dt: c.dt,
             off: Mat3::ZERO.scale(c.cm),
-            drag: model.drag.as_ref().map(|d| (d.weights.clone(), d.coefficient)),
+            drag: model.drag.clone(),
         }
     }
     /// `(cm M + c W)_rr` for the lumped mass `m` of row `r`.
@@ -49,7 +49,7 @@ impl Coefficients {
     pub(crate) fn diagonal(&self, r: usize, m: f64) -> Mat3<f64> {
         let d = Mat3::from_scalar(m).scale(self.cm);
         match &self.drag {
-            Some((w, c)) => d.add(Mat3::from_scalar(c * w[r])),
+            Some(n) => d.add(Mat3::from_scalar(n.coefficient * n.weights[r])),
             None => d,
         }
     }
@@ -58,7 +58,7 @@ impl Coefficients {
     pub(crate) fn mass_u(&self, r: usize, m: f64, u: Vec3<f64>) -> Vec3<f64> {
         let d = u.scale(m).scale(self.cm);
         match &self.drag {
-            Some((w, c)) => d.add(u.scale(c * w[r])),
+            Some(n) => d.add(u.scale(n.coefficient * n.weights[r])),
             None => d,
         }
     }
