@@ -20,7 +20,8 @@
 //!   `dt f` like gravity, so `dL/dc_k = dt lam . F_k` (gravity: `dL/dg = dt sum_i m_i lam_i`);
 //! * `K(u) w` and the corotation force: through the rotations, cell by cell
 //!   ([`crate::local::cell_elastic_adjoint`], [`crate::local::polar_rotation_adjoint`], eq. 5.5.4),
-//!   and the Lame parameters (5.5.5); the Nitsche blocks are linear in `(lambda, mu)`;
+//!   and the Lame parameters (5.5.5); the Nitsche blocks are linear in `(lambda, mu)`, the
+//!   clamp's springs `k P` that replace them (the `clamp` effect) linear in `k`;
 //! * contact (Alg. 5.5, sec. 5.5.5): per crossing ([`crate::local::contact_adjoint`]).
 
 use crate::local::{
@@ -47,6 +48,8 @@ pub struct PhysicalGradient {
     pub damping_stiffness: f64,
     /// the drag coefficient `c` ([`cutfem::fem::NodalDamping`])
     pub drag: f64,
+    /// the stiffness `k` of the clamp's springs ([`cutfem::fem::Model::support`])
+    pub support: f64,
     /// gravity vector
     pub gravity: Vec3<f64>,
     /// ground normal (as a free vector; the caller projects it)
@@ -249,6 +252,16 @@ impl Stage<'_> {
             let Some(ci) = &sim.dirichlet[e] else {
                 continue;
             };
+            if sim.model.support.is_some() {
+                // the springs `k P_ij I` instead: linear in `k`, free of `lambda, mu`
+                for i in 0..8 {
+                    let li = ls[c.dofs[i] as usize];
+                    for j in 0..8 {
+                        grad.support += li.dot(ci.block(i, j, 0.0, 0.0, 1.0) * w_at(c.dofs[j] as usize));
+                    }
+                }
+                continue;
+            }
             let se = scale.map_or(1.0, |s| s[e]);
             for i in 0..8 {
                 let li = ls[c.dofs[i] as usize];

@@ -59,6 +59,8 @@ pub enum Param {
     ExternalForce(usize),
     /// the drag coefficient (log): traction per unit velocity on the surface
     Drag,
+    /// the clamp's support stiffness (log): traction per unit displacement on the held surface
+    Clamp,
 }
 
 impl Param {
@@ -68,7 +70,7 @@ impl Param {
 }
 
 /// The vocabulary, in the order of [`Param`].
-pub const ALL: [Param; 12] = [
+pub const ALL: [Param; 13] = [
     Param::Young,
     Param::Poisson,
     Param::Density,
@@ -81,6 +83,7 @@ pub const ALL: [Param; 12] = [
     Param::StiffnessField,
     Param::EXTERNAL_FORCE,
     Param::Drag,
+    Param::Clamp,
 ];
 
 impl Param {
@@ -99,6 +102,7 @@ impl Param {
             Param::StiffnessField => "stiffness_field",
             Param::ExternalForce(_) => "external_force",
             Param::Drag => "drag",
+            Param::Clamp => "clamp",
         }
     }
     /// The names of its components (the external force's: `external_force[k]`; its reports use
@@ -215,7 +219,8 @@ impl ParamSet {
                 | Param::Density
                 | Param::DampingMass
                 | Param::DampingStiffness
-                | Param::Drag => out.push(true),
+                | Param::Drag
+                | Param::Clamp => out.push(true),
                 _ => out.extend(vec![false; self.component_count(*p)]),
             }
         }
@@ -233,7 +238,8 @@ impl ParamSet {
 
     /// A plausible box for the coordinates of a fit starting at `x0`: Young's modulus and the
     /// density within a factor 100 of the start, the Poisson ratio in `[0.01, 0.49]`, damping
-    /// coefficients in `[1e-6, 1e4]`, the stiffness field's factors within `[1/100, 100]`;
+    /// coefficients in `[1e-6, 1e4]`, the stiffness field's factors within `[1/100, 100]`, the
+    /// clamp's stiffness from 1e-6 to 100 times the start (it starts nearly rigid);
     /// the rest unbounded.
     pub fn bounds(&self, x0: &[f64]) -> Vec<(f64, f64)> {
         let logit = |nu: f64| (2.0 * nu / (1.0 - 2.0 * nu)).ln();
@@ -248,6 +254,7 @@ impl ParamSet {
                     Param::Poisson => (logit(0.01), logit(0.49)),
                     Param::DampingMass | Param::DampingStiffness | Param::Drag => (1e-6f64.ln(), 1e4f64.ln()),
                     Param::StiffnessField => (-100f64.ln(), 100f64.ln()),
+                    Param::Clamp => (x - 1e6f64.ln(), x + 100f64.ln()),
                     _ => (f64::NEG_INFINITY, f64::INFINITY),
                 });
                 k += 1;

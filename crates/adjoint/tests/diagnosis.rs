@@ -201,6 +201,22 @@ fn torus_drag(effects: &[&str]) -> Scene {
     )
 }
 
+/// [`torus_swing_long`] held by an imperfect clamp: springs of `k = 2e4` (stress per length) on
+/// the held surface instead of the rigid hold (the rigid hold's penalty is about 100x that).
+fn torus_clamp(effects: &[&str]) -> Scene {
+    scene(
+        TORUS,
+        2000.0,
+        &format!(
+            "[gravity]\nacceleration = [0.0, -10.0, 0.0]\n[damping]\nmass = 8.0\nstiffness = 0.0\n\
+             [clamp]\nstiffness = 2e4\n{HOLD_LEFT}"
+        ),
+        effects,
+        0.04,
+        10,
+    )
+}
+
 /// A free torus falling onto the ground (its lowest point 0.1 above it), pushed sideways.
 fn torus_drop(effects: &[&str]) -> Scene {
     scene(
@@ -323,6 +339,15 @@ fn torus_hidden_damping() {
 #[test]
 fn torus_hidden_drag() {
     hidden_case(torus_drag, &["gravity", "corotation", "drag"], "drag");
+}
+
+#[test]
+fn torus_hidden_clamp() {
+    hidden_case(
+        torus_clamp,
+        &["gravity", "corotation", "damping", "clamp"],
+        "clamp",
+    );
 }
 
 #[test]

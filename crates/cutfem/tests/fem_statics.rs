@@ -291,6 +291,7 @@ fn element_blocks_share_sets_of_cells_cut_alike() {
             eta,
             eta_per_modulus,
             element,
+            support: None,
         };
         let blocks = sim.assembler.element_blocks(&sim.grid, &m);
         let cut = sim.grid.cut_cells();

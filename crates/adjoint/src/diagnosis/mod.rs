@@ -227,7 +227,7 @@ pub fn diagnose(
         .collect();
     let off: Vec<Box<dyn Effect>> = catalogue()
         .into_iter()
-        .filter(|e| !scene.effect_on(e.name()))
+        .filter(|e| !scene.effect_on(e.name()) && e.applies(scene))
         .collect();
     let total = 3 + off.len() + settings.refits;
     progress("fit the model as given", 0, total);

@@ -33,6 +33,8 @@ enum Slot {
     ExternalForce(ExternalForce),
     /// the base model's drag: its nodal weights
     Drag(NodalDamping),
+    /// the clamp's springs (the base model's stiffness)
+    Clamp(f64),
 }
 
 /// A checked [`ParamSet`] ([`ParamSet::layout`]); it reads as its set (`Deref`).
@@ -86,6 +88,9 @@ impl ParamSet {
                 Param::Drag => Slot::Drag(model.drag.clone().ok_or_else(|| {
                     Error::invalid("fitting `drag` needs a [drag] section and `drag` in [model].effects")
                 })?),
+                Param::Clamp => Slot::Clamp(model.support.ok_or_else(|| {
+                    Error::invalid("fitting `clamp` needs a [clamp] section and `clamp` in [model].effects")
+                })?),
             });
         }
         Ok(Layout { set, slots })
@@ -123,6 +128,7 @@ impl Layout {
                 Slot::StiffnessField(f) => x.extend(vec![0.0; f.len()]),
                 Slot::ExternalForce(base) => x.extend(force(model, base).coefficients.iter().copied()),
                 Slot::Drag(base) => x.push(drag(model, base).coefficient.max(DAMPING_FLOOR).ln()),
+                Slot::Clamp(base) => x.push(model.support.unwrap_or(*base).ln()),
             }
         }
         x
@@ -162,6 +168,7 @@ impl Layout {
                     let c = take(1)[0].exp();
                     model.drag.get_or_insert_with(|| base.clone()).coefficient = c;
                 }
+                Slot::Clamp(_) => model.support = Some(take(1)[0].exp()),
             }
         }
     }
@@ -201,6 +208,7 @@ impl Layout {
                     ));
                 }
                 Slot::Drag(base) => out.push((name(), drag(model, base).coefficient)),
+                Slot::Clamp(base) => out.push((name(), model.support.unwrap_or(*base))),
                 Slot::ExternalForce(base) => {
                     let e = force(model, base);
                     out.extend(e.labels.iter().cloned().zip(e.coefficients.iter().copied()));
@@ -233,6 +241,7 @@ impl Layout {
                 Slot::StiffnessField(f) => out.extend(field_chain(f, model, g)),
                 Slot::ExternalForce(base) => out.extend(force_gradient(base, g)),
                 Slot::Drag(base) => out.push(g.drag * drag(model, base).coefficient),
+                Slot::Clamp(base) => out.push(g.support * model.support.unwrap_or(*base)),
             }
         }
         out
@@ -258,6 +267,7 @@ impl Layout {
                 Slot::StiffnessField(f) => out.extend(vec![1.0; f.len()]),
                 Slot::ExternalForce(base) => out.extend(vec![1.0; base.len()]),
                 Slot::Drag(base) => out.push(drag(model, base).coefficient),
+                Slot::Clamp(base) => out.push(model.support.unwrap_or(*base)),
             }
         }
         out
@@ -289,6 +299,7 @@ impl Layout {
                     out.extend(base.labels.iter().cloned().zip(force_gradient(base, g)))
                 }
                 Slot::Drag(_) => out.push((name(), g.drag)),
+                Slot::Clamp(_) => out.push((name(), g.support)),
             }
         }
         out

@@ -88,6 +88,8 @@ pub struct Material {
     pub eta_per_modulus: f64,
     /// the grid element
     pub element: super::element::Element,
+    /// the stiffness of springs replacing the Nitsche hold ([`crate::fem::Model::support`])
+    pub support: Option<f64>,
 }
 
 impl Material {
@@ -96,6 +98,23 @@ impl Material {
     #[inline(always)]
     pub fn penalty(&self, se: f64, factor: f64) -> f64 {
         self.eta + self.eta_per_modulus * (self.lambda + 2.0 * self.mu) * se * factor
+    }
+    /// Block `(i, j)` of the held surface `f` in a cell whose Young's modulus is scaled by
+    /// `se`: the Nitsche block ([`NitscheFace::block`]), or with an elastic support its springs
+    /// `k P_ij I` instead (the Nitsche block without its traction terms and with `k` for the
+    /// penalty; the fixture's springs do not scale with the material).
+    #[inline(always)]
+    pub fn held_block(&self, f: &NitscheFace, i: usize, j: usize, se: f64) -> Mat3<f64> {
+        match self.support {
+            Some(k) => f.block(i, j, 0.0, 0.0, k),
+            None => f.block(
+                i,
+                j,
+                self.lambda * se,
+                self.mu * se,
+                self.penalty(se, f.penalty_factor),
+            ),
+        }
     }
 }
 
@@ -355,19 +374,14 @@ impl Assembler {
         (&self.node_cells[range.clone()], &self.upper[range])
     }
 
-    /// The Nitsche terms of element block `(e, i, j)`, Young's modulus scaled by `se`.
+    /// The held surface's terms of element block `(e, i, j)`, Young's modulus scaled by `se`
+    /// ([`Material::held_block`]).
     #[inline(always)]
     fn nitsche(&self, c: &Cells<'_>, e: usize, i: usize, j: usize, se: f64) -> Mat3<f64> {
-        let Some(f) = &c.dirichlet[e] else {
-            return Mat3::default();
-        };
-        f.block(
-            i,
-            j,
-            c.m.lambda * se,
-            c.m.mu * se,
-            c.m.penalty(se, f.penalty_factor),
-        )
+        match &c.dirichlet[e] {
+            Some(f) => c.m.held_block(f, i, j, se),
+            None => Mat3::default(),
+        }
     }
 
     /// The blocks of row `r` from the diagonal on without rotation: each the sum of its

@@ -166,6 +166,11 @@ pub struct Model {
     /// a velocity-proportional damping force with fixed nodal weights (the `drag` effect;
     /// `None`: none)
     pub drag: Option<NodalDamping>,
+    /// the stiffness `k` (traction per unit displacement) of springs on the surface the
+    /// Dirichlet boxes hold, in place of their rigid Nitsche hold: the block `k P_ij I`,
+    /// `P_ij = int N_i N_j` over the held surface ([`crate::fem::NitscheFace::block`] without
+    /// its traction terms; the `clamp` effect; `None`: held rigidly)
+    pub support: Option<f64>,
     /// time step of the integrator (a scene's `time.dt / time.substeps`)
     pub dt: f64,
     /// Newmark-1 theta in [0.5, 1)
@@ -321,6 +326,7 @@ impl Default for Model {
             stiffness_scale: None,
             external_force: None,
             drag: None,
+            support: None,
             dt: 0.01,
             theta: 0.6,
             substeps: 1,
@@ -419,6 +425,15 @@ impl Model {
             if let Some(w) = d.weights.iter().find(|w| !(**w >= 0.0 && w.is_finite())) {
                 return bad("model.drag", format!("weights must be >= 0, got {w}"));
             }
+        }
+        if let Some(k) = self.support.filter(|k| !(*k > 0.0 && k.is_finite())) {
+            return bad("clamp.stiffness", format!("must be finite and > 0, got {k}"));
+        }
+        if self.support.is_some() && self.dirichlet.is_empty() {
+            return bad(
+                "clamp",
+                "an elastic support needs a [[dirichlet]] box whose hold it softens".into(),
+            );
         }
         for (i, b) in self.dirichlet.iter().enumerate() {
             if !(0..3).all(|d| b.min[d] <= b.max[d]) {

@@ -210,6 +210,7 @@ impl Simulation {
             eta,
             eta_per_modulus,
             element: self.model.element,
+            support: self.model.support,
         }
     }
 

@@ -73,6 +73,12 @@ impl TetSimulation {
                     .into(),
             ));
         }
+        if model.support.is_some() {
+            return Err(Error::Invalid(
+                "clamp: an elastic support is not available on the tetrahedral baseline (its fixed nodes are held rigidly)"
+                    .into(),
+            ));
+        }
         model.check_external_dofs(mesh.dofs())?;
         let assembler = TetAssembler::new(&mesh);
         let mass = assembler.lumped_mass(&mesh, model.density);
@@ -152,6 +158,7 @@ impl TetSimulation {
             eta: 0.0,
             eta_per_modulus: 0.0,
             element: self.model.element,
+            support: None,
         }
     }
 

@@ -11,6 +11,7 @@
 //! | `stiffness_field` | per-cell factor on `E` | `backward`: per-cell `dJ/ds_e` | `stiffness_field` (coarse log factors) | all factors 1 | score |
 //! | `initial_velocity` | `v(0) = v0 + w x (X - c)` | `backward`: `dJ/dv(0)` | `initial_velocity`, `initial_angular_velocity` | `0` | score |
 //! | `drag` | traction `-c v` on the surface: damping matrix `c W`, `W = diag(A_i)` ([`drag`]) | `backward`: `dJ/dc = sum_t lam_t . W (u_t - u_t+1)` | `drag` (1) | `c = 0` | score |
+//! | `clamp` | springs `-k W_s u` on the held surface instead of the rigid Nitsche hold ([`clamp`]) | `backward`: `dJ/dk = sum_t lam_t . W_s (cu u_t - ck u_t+1)` | `clamp` (1) | `k = infinity` (rigid) | initialized: `k = (lambda + 2 mu) / h` |
 //! | `wind` (extended) | external force `sum_d w_d A_i e_d` ([`wind`]) | `backward`: `dJ/dc_k = dt sum_t lam_t . F_k` | `external_force` (3) | `w = 0` | score |
 //!
 //! A **score** probe evaluates the gradient and the Gauss-Newton matrix of the effect's
@@ -36,6 +37,7 @@
 //! gravity, and a probe of it would compete with gravity's). Scenes may switch on any effect
 //! of the extended catalogue.
 
+mod clamp;
 mod corotation;
 mod damping;
 mod drag;
@@ -45,6 +47,7 @@ mod initial_velocity;
 mod stiffness_field;
 pub mod wind;
 
+pub use clamp::Clamp;
 pub use corotation::Corotation;
 pub use damping::Damping;
 pub use drag::Drag;
@@ -93,6 +96,11 @@ pub trait Effect: Send + Sync {
     fn params(&self) -> Vec<Param>;
     /// How a diagnosis probes it when the model lacks it.
     fn probe(&self) -> Probe;
+    /// Whether it can be switched on in `scene` at all (the clamp needs a held region); a
+    /// diagnosis probes only those that can.
+    fn applies(&self, _scene: &Scene) -> bool {
+        true
+    }
     /// Switches the effect on in `scene` at its neutral value ([`Probe::Score`]), at a value
     /// estimated from `data` ([`Probe::Initialized`]), or simply on ([`Probe::Switch`]); writes
     /// the scene section it needs and adds it to `[model].effects`.
@@ -113,6 +121,7 @@ pub fn catalogue() -> Vec<Box<dyn Effect>> {
         Box::new(StiffnessField::default()),
         Box::new(InitialVelocity),
         Box::new(Drag),
+        Box::new(Clamp),
     ]
 }
 

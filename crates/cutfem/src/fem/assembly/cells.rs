@@ -182,19 +182,14 @@ impl Kernel for Chunk<'_> {
 }
 
 impl CellSweep<'_> {
-    /// `c_i += cu sum_j N_ij u_j` for the Nitsche blocks `N_ij` of cell `e` (Young's modulus
-    /// scaled by `sc`; [`crate::fem::NitscheFace::block`]).
+    /// `c_i += cu sum_j N_ij u_j` for the held surface's blocks `N_ij` of cell `e` (Young's
+    /// modulus scaled by `sc`; [`crate::fem::assembly::Material::held_block`]).
     #[inline(never)]
     fn add_nitsche(&self, f: &crate::fem::NitscheFace, u: &[Vec3<f64>; 8], sc: f64, c: &mut [Vec3<f64>; 8]) {
-        let (lambda, mu, eta) = (
-            self.m.lambda * sc,
-            self.m.mu * sc,
-            self.m.penalty(sc, f.penalty_factor),
-        );
         for (i, ci_out) in c.iter_mut().enumerate() {
             let mut acc = Vec3::default();
             for (j, uj) in u.iter().enumerate() {
-                acc = acc + f.block(i, j, lambda, mu, eta) * *uj;
+                acc = acc + self.m.held_block(f, i, j, sc) * *uj;
             }
             *ci_out = *ci_out + acc * self.cu;
         }
