@@ -298,6 +298,9 @@ fn fitting_clamp_without_it_names_the_section() {
         support: Some(1.0),
         ..Model::default()
     };
-    let e = Simulation::new(g, m).err().expect("refused").to_string();
+    let Err(e) = Simulation::new(g, m) else {
+        panic!("a support without a held region is refused")
+    };
+    let e = e.to_string();
     assert!(e.contains("clamp") && e.contains("[[dirichlet]]"), "{e}");
 }
