@@ -4,6 +4,8 @@
 //! against central differences of the whole simulation (every other effect on), and its
 //! Gauss-Newton matrix against the Hessian at zero residual.
 
+mod common;
+
 use adjoint::cost::DisplacementCost;
 use adjoint::params::ParamSet;
 use adjoint::problem::Problem;
@@ -241,19 +243,7 @@ fn the_springs_carry_the_weight_and_tend_to_the_rigid_hold() {
 fn clamp_gradient_matches_finite_differences() {
     let mut p = problem(model(2e4), model(6e4), "young,damping_stiffness,clamp");
     let x = p.x0();
-    let (ev, g, _) = p.gradient(&x).unwrap();
-    assert!(ev.cost > 0.0);
-    for k in 0..x.len() {
-        let mut best = f64::INFINITY;
-        for eps in [1e-3, 1e-4, 1e-5] {
-            let (mut xp, mut xm) = (x.clone(), x.clone());
-            xp[k] += eps;
-            xm[k] -= eps;
-            let fd = (p.evaluate(&xp).unwrap().cost - p.evaluate(&xm).unwrap().cost) / (2.0 * eps);
-            best = best.min((g[k] - fd).abs() / g[k].abs().max(fd.abs()));
-        }
-        assert!(best < 1e-6, "{}: rel {best:.2e}", p.params.labels()[k]);
-    }
+    common::assert_gradient_is_the_fd_gradient(&mut p, &x, 1e-6);
     assert_eq!(p.params.labels()[2], "clamp");
     assert_eq!(p.params.values(&p.base)[2], ("clamp".to_string(), 6e4));
 }
@@ -264,24 +254,7 @@ fn clamp_gradient_matches_finite_differences() {
 fn clamp_gauss_newton_matrix_is_the_hessian_at_zero_residual() {
     let mut p = problem(model(2e4), model(2e4), "young,clamp");
     let x = p.x0();
-    let n = x.len();
-    let h = p.gauss_newton_matrix(&x).unwrap();
-    let eps = 1e-4;
-    for b in 0..n {
-        let (mut xp, mut xm) = (x.clone(), x.clone());
-        xp[b] += eps;
-        xm[b] -= eps;
-        let (gp, gm) = (p.gradient(&xp).unwrap().1, p.gradient(&xm).unwrap().1);
-        for a in 0..n {
-            let fd = (gp[a] - gm[a]) / (2.0 * eps);
-            let scale = h[a * n + a].abs().max(h[b * n + b].abs());
-            assert!(
-                (h[a * n + b] - fd).abs() <= 1e-5 * scale,
-                "H[{a}][{b}]: tangent {} vs fd {fd}",
-                h[a * n + b]
-            );
-        }
-    }
+    common::assert_gauss_newton_is_the_fd_hessian(&mut p, &x, 1e-4);
 }
 
 /// Fitting `clamp` needs the effect in the model; the error says how to switch it on. A

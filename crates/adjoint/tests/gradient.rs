@@ -2,6 +2,9 @@
 //! Taylor test (the remainder `J(x + e d) - J(x) - e g.d` falls as `e^2`), for the displacement
 //! cost (eq. 5.4.1) and the point-cloud cost (eq. 5.4.4) with every effect on.
 
+mod common;
+use common::assert_gauss_newton_is_the_fd_hessian;
+
 use adjoint::cost::{Cost, DisplacementCost, ObservedPoint, PointCloudCost, Robust};
 use adjoint::params::ParamSet;
 use adjoint::problem::Problem;
@@ -513,29 +516,6 @@ fn a_frame_of_substeps_is_that_many_steps() {
             .map(|(a, b)| (*a - *b).norm())
             .fold(0.0, f64::max);
         assert!(d <= 1e-14, "frame {f}: {d}");
-    }
-}
-
-/// The Gauss-Newton matrix at `x` against central differences (step `eps`) of the adjoint
-/// gradient, each entry within 1e-5 of the larger of its two diagonal entries (at zero
-/// residual the Gauss-Newton matrix is the Hessian).
-fn assert_gauss_newton_is_the_fd_hessian(p: &mut Problem, x: &[f64], eps: f64) {
-    let n = x.len();
-    let h = p.gauss_newton_matrix(x).unwrap();
-    for b in 0..n {
-        let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
-        xp[b] += eps;
-        xm[b] -= eps;
-        let (gp, gm) = (p.gradient(&xp).unwrap().1, p.gradient(&xm).unwrap().1);
-        for a in 0..n {
-            let fd = (gp[a] - gm[a]) / (2.0 * eps);
-            let scale = h[a * n + a].abs().max(h[b * n + b].abs());
-            assert!(
-                (h[a * n + b] - fd).abs() <= 1e-5 * scale,
-                "H[{a}][{b}]: tangent {} vs fd {fd}",
-                h[a * n + b]
-            );
-        }
     }
 }
 
