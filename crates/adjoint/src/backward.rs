@@ -22,10 +22,12 @@
 //!   ([`crate::local::cell_elastic_adjoint`], [`crate::local::polar_rotation_adjoint`], eq. 5.5.4),
 //!   and the Lame parameters (5.5.5); the Nitsche blocks are linear in `(lambda, mu)`, the
 //!   clamp's springs `k P` that replace them (the `clamp` effect) linear in `k`;
-//! * contact (Alg. 5.5, sec. 5.5.5): per crossing ([`crate::local::contact_adjoint`]).
+//! * contact (Alg. 5.5, sec. 5.5.5): per crossing ([`crate::local::contact_adjoint`]), and its
+//!   friction `mu N(d) lam_c . P (u_c - u'_c)` ([`crate::local::friction_adjoint`]).
 
 use crate::local::{
-    cell_elastic_adjoint, contact_adjoint, deformation_gradient_adjoint, polar_rotation_adjoint,
+    cell_elastic_adjoint, contact_adjoint, deformation_gradient_adjoint, friction_adjoint,
+    polar_rotation_adjoint,
 };
 use cutfem::fem::collision::Ground;
 use cutfem::fem::element::{corner_offsets, deformation_gradient_with, POLAR_ITERATIONS};
@@ -50,6 +52,8 @@ pub struct PhysicalGradient {
     pub drag: f64,
     /// the stiffness `k` of the clamp's springs ([`cutfem::fem::Model::support`])
     pub support: f64,
+    /// the ground friction `mu` ([`cutfem::fem::Model::friction`])
+    pub friction: f64,
     /// gravity vector
     pub gravity: Vec3<f64>,
     /// ground normal (as a free vector; the caller projects it)
@@ -305,6 +309,14 @@ impl Stage<'_> {
             let adj = contact_adjoint(&spring, dt, theta, x0, ip(us), ip(uns), ip(vs), ip(ls));
             ubs[a] = ubs[a] + adj.u * (1.0 - t);
             ubs[b] = ubs[b] + adj.u * t;
+            if let Some(mu) = sim.model.friction {
+                let fr = friction_adjoint(&spring, mu, x0, ip(us), ip(uns), ip(ls));
+                ubs[a] = ubs[a] + fr.u * (1.0 - t);
+                ubs[b] = ubs[b] + fr.u * t;
+                grad.ground_normal = grad.ground_normal + fr.normal;
+                grad.ground_height += fr.height;
+                grad.friction += fr.mu;
+            }
             vbs[a] = vbs[a] + adj.v * (1.0 - t);
             vbs[b] = vbs[b] + adj.v * t;
             grad.ground_normal = grad.ground_normal + adj.normal;

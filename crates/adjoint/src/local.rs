@@ -180,6 +180,64 @@ pub struct ContactAdjoint {
     pub lam: Vec3<f64>,
 }
 
+/// One crossing's ground-friction term (`cutfem::fem::collision::add_friction_forces`):
+/// `L_f = mu N(d) lam_c . P (u_c - u'_c)` with `N(d) = -k S(d)` the normal force at the step's
+/// start, `d = n . (x0 + u_c) - height`, `P = I - n n^T`.
+pub fn friction_value(
+    g: &Ground,
+    mu: f64,
+    x0: Vec3<f64>,
+    u: Vec3<f64>,
+    u_next: Vec3<f64>,
+    lam: Vec3<f64>,
+) -> f64 {
+    let n = g.normal;
+    let d = n.dot(x0 + u) - g.height;
+    let delta = u - u_next;
+    mu * (-g.stiffness * g.law(d).0) * lam.dot(delta - n * n.dot(delta))
+}
+
+/// Derivatives of one crossing's friction term [`friction_value`] (the normal taken as a free
+/// vector).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrictionAdjoint {
+    /// `dL_f/du_c` (to be spread to the corners with weights `1-t`, `t`)
+    pub u: Vec3<f64>,
+    /// `dL_f/dn`
+    pub normal: Vec3<f64>,
+    /// `dL_f/dheight`
+    pub height: f64,
+    /// `dL_f/dmu`
+    pub mu: f64,
+}
+
+/// The derivatives of [`friction_value`]: with `q = lam . P delta`, `delta = u_c - u'_c`,
+/// `L_f = mu N(d) q`, `dq/du_c = P lam`, `dq/dn = -(n . delta) lam - (lam . n) delta`.
+pub fn friction_adjoint(
+    g: &Ground,
+    mu: f64,
+    x0: Vec3<f64>,
+    u: Vec3<f64>,
+    u_next: Vec3<f64>,
+    lam: Vec3<f64>,
+) -> FrictionAdjoint {
+    let n = g.normal;
+    let p = x0 + u;
+    let d = n.dot(p) - g.height;
+    let (s, s1) = g.law(d);
+    let (force, slope) = (-g.stiffness * s, -g.stiffness * s1);
+    let delta = u - u_next;
+    let q = lam.dot(delta - n * n.dot(delta));
+    let dl_dd = mu * slope * q;
+    let p_lam = lam - n * n.dot(lam);
+    FrictionAdjoint {
+        u: p_lam * (mu * force) + n * dl_dd,
+        normal: p * dl_dd - (lam * n.dot(delta) + delta * lam.dot(n)) * (mu * force),
+        height: -dl_dd,
+        mu: force * q,
+    }
+}
+
 /// `d^2 softmin_alpha(0, d) / dd^2 = -alpha S'(1 - S')`.
 pub fn softmin0_second(d: f64, alpha: f64) -> f64 {
     let s1 = softmin0_derivative(d, alpha);

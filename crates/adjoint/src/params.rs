@@ -61,6 +61,8 @@ pub enum Param {
     Drag,
     /// the clamp's support stiffness (log): traction per unit displacement on the held surface
     Clamp,
+    /// the ground friction (log): tangential traction per normal traction per sliding speed
+    Friction,
 }
 
 impl Param {
@@ -70,7 +72,7 @@ impl Param {
 }
 
 /// The vocabulary, in the order of [`Param`].
-pub const ALL: [Param; 13] = [
+pub const ALL: [Param; 14] = [
     Param::Young,
     Param::Poisson,
     Param::Density,
@@ -84,6 +86,7 @@ pub const ALL: [Param; 13] = [
     Param::EXTERNAL_FORCE,
     Param::Drag,
     Param::Clamp,
+    Param::Friction,
 ];
 
 impl Param {
@@ -103,6 +106,7 @@ impl Param {
             Param::ExternalForce(_) => "external_force",
             Param::Drag => "drag",
             Param::Clamp => "clamp",
+            Param::Friction => "friction",
         }
     }
     /// The names of its components (the external force's: `external_force[k]`; its reports use
@@ -220,7 +224,8 @@ impl ParamSet {
                 | Param::DampingMass
                 | Param::DampingStiffness
                 | Param::Drag
-                | Param::Clamp => out.push(true),
+                | Param::Clamp
+                | Param::Friction => out.push(true),
                 _ => out.extend(vec![false; self.component_count(*p)]),
             }
         }
@@ -238,7 +243,7 @@ impl ParamSet {
 
     /// A plausible box for the coordinates of a fit starting at `x0`: Young's modulus and the
     /// density within a factor 100 of the start, the Poisson ratio in `[0.01, 0.49]`, damping
-    /// coefficients in `[1e-6, 1e4]`, the stiffness field's factors within `[1/100, 100]`, the
+    /// coefficients (and the friction) in `[1e-6, 1e4]`, the stiffness field's factors within `[1/100, 100]`, the
     /// clamp's stiffness from 1e-6 to 100 times the start (it starts nearly rigid);
     /// the rest unbounded.
     pub fn bounds(&self, x0: &[f64]) -> Vec<(f64, f64)> {
@@ -252,7 +257,9 @@ impl ParamSet {
                 out.push(match p {
                     Param::Young | Param::Density => (x - 100f64.ln(), x + 100f64.ln()),
                     Param::Poisson => (logit(0.01), logit(0.49)),
-                    Param::DampingMass | Param::DampingStiffness | Param::Drag => (1e-6f64.ln(), 1e4f64.ln()),
+                    Param::DampingMass | Param::DampingStiffness | Param::Drag | Param::Friction => {
+                        (1e-6f64.ln(), 1e4f64.ln())
+                    }
                     Param::StiffnessField => (-100f64.ln(), 100f64.ln()),
                     Param::Clamp => (x - 1e6f64.ln(), x + 100f64.ln()),
                     _ => (f64::NEG_INFINITY, f64::INFINITY),

@@ -230,6 +230,20 @@ fn torus_drop(effects: &[&str]) -> Scene {
     )
 }
 
+/// [`torus_drop`] with ground friction (`mu = 1`: at the contact force of the torus' weight
+/// the sliding slows by about `e^{-mu g t}`, a third in its 0.1 s on the ground).
+fn torus_friction(effects: &[&str]) -> Scene {
+    scene(
+        TORUS,
+        2000.0,
+        "[gravity]\nacceleration = [0.0, -10.0, 0.0]\n[ground]\nheight = 0.2\n[friction]\ncoefficient = 1.0\n\
+         [initial]\nvelocity = [1.0, -0.5, 0.0]\nangular_velocity = [0.0, 0.0, 1.0]\n",
+        effects,
+        0.02,
+        10,
+    )
+}
+
 /// The bunny scan falling onto the ground (its lowest point 0.008 above it, contact after 6 of
 /// the 10 steps), pushed sideways.
 fn bunny_drop(effects: &[&str]) -> Scene {
@@ -347,6 +361,15 @@ fn torus_hidden_clamp() {
         torus_clamp,
         &["gravity", "corotation", "damping", "clamp"],
         "clamp",
+    );
+}
+
+#[test]
+fn torus_hidden_friction() {
+    hidden_case(
+        torus_friction,
+        &["gravity", "corotation", "ground", "initial_velocity", "friction"],
+        "friction",
     );
 }
 

@@ -171,7 +171,69 @@ fn contact_adjoint_matches_central_differences() {
     }
 }
 
-/// A small bar with every effect on: corotation, Nitsche, gravity, damping and ground contact.
+#[test]
+fn friction_adjoint_matches_central_differences() {
+    let mut rng = Rng(5);
+    for scheme in [ContactScheme::Implicit, ContactScheme::Penalty] {
+        for trial in 0..20 {
+            let g = Ground {
+                normal: (Vec3::new(0.0, 1.0, 0.0) + rng.vec() * 0.2),
+                height: 0.1 * rng.next(),
+                stiffness: 1e3,
+                softness: 50.0,
+                scheme,
+            };
+            // distances in the soft transition region, and in contact for the penalty law
+            let x0 = Vec3::new(rng.next(), g.height + 0.03 * rng.next() - 0.01, rng.next());
+            let (u, un, lam) = (rng.vec() * 0.01, rng.vec() * 0.01, rng.vec());
+            let mu = 0.5 + rng.next().abs();
+            let adj = friction_adjoint(&g, mu, x0, u, un, lam);
+            let d = rng.vec();
+            let checks = [
+                (
+                    "u",
+                    adj.u.dot(d),
+                    cd(1e-7, |t| friction_value(&g, mu, x0, u + d * t, un, lam)),
+                ),
+                (
+                    "mu",
+                    adj.mu,
+                    cd(1e-3, |t| friction_value(&g, mu + t, x0, u, un, lam)),
+                ),
+                (
+                    "n",
+                    adj.normal.dot(d),
+                    cd(1e-7, |t| {
+                        let mut g2 = g;
+                        g2.normal = g.normal + d * t;
+                        friction_value(&g2, mu, x0, u, un, lam)
+                    }),
+                ),
+                (
+                    "height",
+                    adj.height,
+                    cd(1e-7, |t| {
+                        let mut g2 = g;
+                        g2.height = g.height + t;
+                        friction_value(&g2, mu, x0, u, un, lam)
+                    }),
+                ),
+            ];
+            for (name, an, fd) in checks {
+                if an.abs().max(fd.abs()) < 1e-9 {
+                    continue;
+                }
+                assert!(
+                    rel(an, fd) < 1e-6,
+                    "{scheme:?} trial {trial} {name}: {an} vs {fd}"
+                );
+            }
+        }
+    }
+}
+
+/// A small bar with every effect on: corotation, Nitsche, gravity, damping and ground contact
+/// with friction.
 fn small_sim(scheme: ContactScheme) -> Simulation {
     let shape = Shape::Box {
         center: [0.0, 0.25, 0.0],
@@ -201,6 +263,7 @@ fn small_sim(scheme: ContactScheme) -> Simulation {
             min: [-0.4, 0.0, -0.2],
             max: [-0.22, 0.5, 0.2],
         }],
+        friction: Some(0.7),
         ..Model::default()
     };
     let mut sim = Simulation::new(grid, model).unwrap();
@@ -280,6 +343,12 @@ fn step_adjoint_matches_central_differences() {
                 Box::new(|m, t| m.poisson += t),
             ),
             ("density", g.density, 0.1, Box::new(|m, t| m.density += t)),
+            (
+                "friction",
+                g.friction,
+                0.01,
+                Box::new(|m, t| m.friction = m.friction.map(|f| f + t)),
+            ),
             (
                 "damping_mass",
                 g.damping_mass,

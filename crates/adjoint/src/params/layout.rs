@@ -35,6 +35,8 @@ enum Slot {
     Drag(NodalDamping),
     /// the clamp's springs (the base model's stiffness)
     Clamp(f64),
+    /// the ground friction (needs the ground)
+    Friction,
 }
 
 /// A checked [`ParamSet`] ([`ParamSet::layout`]); it reads as its set (`Deref`).
@@ -88,6 +90,14 @@ impl ParamSet {
                 Param::Drag => Slot::Drag(model.drag.clone().ok_or_else(|| {
                     Error::invalid("fitting `drag` needs a [drag] section and `drag` in [model].effects")
                 })?),
+                Param::Friction => {
+                    if model.ground.is_none() || model.friction.is_none() {
+                        return Err(Error::invalid(
+                            "fitting `friction` needs the ground and a [friction] section, both in [model].effects",
+                        ));
+                    }
+                    Slot::Friction
+                }
                 Param::Clamp => Slot::Clamp(model.support.ok_or_else(|| {
                     Error::invalid("fitting `clamp` needs a [clamp] section and `clamp` in [model].effects")
                 })?),
@@ -129,6 +139,7 @@ impl Layout {
                 Slot::ExternalForce(base) => x.extend(force(model, base).coefficients.iter().copied()),
                 Slot::Drag(base) => x.push(drag(model, base).coefficient.max(DAMPING_FLOOR).ln()),
                 Slot::Clamp(base) => x.push(model.support.unwrap_or(*base).ln()),
+                Slot::Friction => x.push(model.friction.unwrap_or(0.0).max(DAMPING_FLOOR).ln()),
             }
         }
         x
@@ -169,6 +180,7 @@ impl Layout {
                     model.drag.get_or_insert_with(|| base.clone()).coefficient = c;
                 }
                 Slot::Clamp(_) => model.support = Some(take(1)[0].exp()),
+                Slot::Friction => model.friction = Some(take(1)[0].exp()),
             }
         }
     }
@@ -209,6 +221,7 @@ impl Layout {
                 }
                 Slot::Drag(base) => out.push((name(), drag(model, base).coefficient)),
                 Slot::Clamp(base) => out.push((name(), model.support.unwrap_or(*base))),
+                Slot::Friction => out.push((name(), model.friction.unwrap_or(0.0))),
                 Slot::ExternalForce(base) => {
                     let e = force(model, base);
                     out.extend(e.labels.iter().cloned().zip(e.coefficients.iter().copied()));
@@ -242,6 +255,7 @@ impl Layout {
                 Slot::ExternalForce(base) => out.extend(force_gradient(base, g)),
                 Slot::Drag(base) => out.push(g.drag * drag(model, base).coefficient),
                 Slot::Clamp(base) => out.push(g.support * model.support.unwrap_or(*base)),
+                Slot::Friction => out.push(g.friction * model.friction.unwrap_or(0.0)),
             }
         }
         out
@@ -268,6 +282,7 @@ impl Layout {
                 Slot::ExternalForce(base) => out.extend(vec![1.0; base.len()]),
                 Slot::Drag(base) => out.push(drag(model, base).coefficient),
                 Slot::Clamp(base) => out.push(model.support.unwrap_or(*base)),
+                Slot::Friction => out.push(model.friction.unwrap_or(0.0)),
             }
         }
         out
@@ -300,6 +315,7 @@ impl Layout {
                 }
                 Slot::Drag(_) => out.push((name(), g.drag)),
                 Slot::Clamp(_) => out.push((name(), g.support)),
+                Slot::Friction => out.push((name(), g.friction)),
             }
         }
         out

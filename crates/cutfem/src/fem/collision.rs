@@ -11,6 +11,9 @@
 //! Newmark-weighted `theta f_next + (1 - theta) f` (eq. 2.6.4) is spread to the two corners
 //! with weights `1 - t` and `t`.
 //!
+//! Ground friction ([`add_friction_forces`]) adds a tangential traction against the sliding at
+//! each crossing, proportional to its normal force.
+//!
 //! Each grid edge is visited once (the thesis' per-cell loop visits an edge shared by several
 //! active cells several times).
 //!
@@ -327,6 +330,46 @@ pub fn add_ground_forces(
         fs[b] = fs[b] + fv * t;
     }
     touching
+}
+
+/// Ground friction ([`crate::fem::Model::friction`], the `friction` effect): a tangential
+/// traction against the sliding, proportional to the contact's normal force,
+/// `f_c = -mu N_c P (u'_c - u_c) / dt` per crossing. `N_c = -spring S(d_c)` is the crossing's
+/// normal force at the step's start (lagged: the law stays linear in `u'`), `P = I - n n^T` the
+/// tangential projector and `(u'_c - u_c) / dt` the sliding velocity over the step (implicit in
+/// `u'`, like the drag's). In the Newmark step (`b += dt f`) it adds `mu N_c w w^T (x) P` to
+/// `A` (symmetric, positive semi-definite) and `mu N_c P u_c` to `b`, spread with the weights
+/// `w = (1 - t, t)`. Adds `(mu N_c / dt) P u_c` spread to `f` and returns the `(crossing,
+/// mu N_c)` terms of `A` in `terms` (crossings with a normal force only, in their fixed order).
+pub fn add_friction_forces(
+    grid: &Grid,
+    crossings: &[Crossing],
+    ground: &Ground,
+    mu: f64,
+    u: &Field,
+    dt: f64,
+    f: &mut Field,
+    terms: &mut Vec<(Crossing, f64)>,
+) {
+    terms.clear();
+    let us = u.as_slice();
+    let n = ground.normal;
+    let fs = f.as_mut_slice();
+    for c in crossings {
+        let (a, b, t) = (c.a as usize, c.b as usize, c.t);
+        let uc = us[a] * (1.0 - t) + us[b] * t;
+        let d = n.dot(grid.positions[a] * (1.0 - t) + grid.positions[b] * t + uc) - ground.height;
+        let normal_force = -ground.spring(c) * ground.law(d).0;
+        if normal_force <= 0.0 {
+            continue;
+        }
+        let coef = mu * normal_force;
+        terms.push((*c, coef));
+        // (mu N / dt) P u_c
+        let fv = (uc - n * n.dot(uc)) * (coef / dt);
+        fs[a] = fs[a] + fv * (1.0 - t);
+        fs[b] = fs[b] + fv * t;
+    }
 }
 
 /// How far the Newton iterate `x` of a [`ContactScheme::Penalty`] step is from solving the

@@ -171,6 +171,10 @@ pub struct Model {
     /// `P_ij = int N_i N_j` over the held surface ([`crate::fem::NitscheFace::block`] without
     /// its traction terms; the `clamp` effect; `None`: held rigidly)
     pub support: Option<f64>,
+    /// ground friction `mu` (tangential traction per unit normal traction per unit sliding
+    /// speed; [`crate::fem::collision::add_friction_forces`], the `friction` effect; `None`:
+    /// frictionless). Needs the ground.
+    pub friction: Option<f64>,
     /// time step of the integrator (a scene's `time.dt / time.substeps`)
     pub dt: f64,
     /// Newmark-1 theta in [0.5, 1)
@@ -327,6 +331,7 @@ impl Default for Model {
             external_force: None,
             drag: None,
             support: None,
+            friction: None,
             dt: 0.01,
             theta: 0.6,
             substeps: 1,
@@ -428,6 +433,18 @@ impl Model {
         }
         if let Some(k) = self.support.filter(|k| !(*k > 0.0 && k.is_finite())) {
             return bad("clamp.stiffness", format!("must be finite and > 0, got {k}"));
+        }
+        if let Some(mu) = self.friction.filter(|m| !(*m >= 0.0 && m.is_finite())) {
+            return bad(
+                "friction.coefficient",
+                format!("must be finite and >= 0, got {mu}"),
+            );
+        }
+        if self.friction.is_some() && self.ground.is_none() {
+            return bad(
+                "friction",
+                "ground friction needs the ground ([ground] and `ground` in [model].effects)".into(),
+            );
         }
         if self.support.is_some() && self.dirichlet.is_empty() {
             return bad(

@@ -370,7 +370,7 @@ impl Simulation {
         info.assembly_s += t0.elapsed().as_secs_f64();
 
         let t1 = Instant::now();
-        let contact = self.ground_forces(&mut info);
+        let (contact, friction) = self.ground_forces(&mut info);
         info.collision_s = t1.elapsed().as_secs_f64();
 
         let t2 = Instant::now();
@@ -380,7 +380,9 @@ impl Simulation {
             self.k.keep(k);
         }
         if let Some(ground) = &self.model.ground {
-            self.add_contact_stiffness(&contact, ground.normal, ground.contact_theta(theta) * dt);
+            let n = ground.normal;
+            self.add_crossing_blocks(&contact, n.outer(n), ground.contact_theta(theta) * dt);
+            self.add_crossing_blocks(&friction, Mat3::identity() - n.outer(n), 1.0);
         }
         self.contact = contact;
         info.assembly_s += t2.elapsed().as_secs_f64();

@@ -73,6 +73,11 @@ impl TetSimulation {
                     .into(),
             ));
         }
+        if model.friction.is_some() {
+            return Err(Error::Invalid(
+                "friction: ground friction is not available on the tetrahedral baseline".into(),
+            ));
+        }
         if model.support.is_some() {
             return Err(Error::Invalid(
                 "clamp: an elastic support is not available on the tetrahedral baseline (its fixed nodes are held rigidly)"

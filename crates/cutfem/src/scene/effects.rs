@@ -1,7 +1,7 @@
 //! The forward half of the effects that have their own scene section: how the section changes
 //! the model. The core effects ([`super::EFFECTS`]: gravity, damping, ground, corotation,
 //! stiffness field, initial velocity) are built by [`Scene::to_model`] from the core sections;
-//! an effect with its own section ([`wind`], [`drag`], [`clamp`]) implements [`SectionEffect`] and is listed
+//! an effect with its own section ([`wind`], [`drag`], [`clamp`], [`friction`]) implements [`SectionEffect`] and is listed
 //! in [`section_effects`]. [`Scene::build_model`] applies every one the scene switches on, so
 //! every command builds the complete model without the adjoint crate.
 //!
@@ -11,6 +11,7 @@
 
 pub mod clamp;
 pub mod drag;
+pub mod friction;
 pub mod wind;
 
 use super::Scene;
@@ -30,7 +31,12 @@ pub trait SectionEffect: Send + Sync {
 
 /// The effects with their own section.
 pub fn section_effects() -> Vec<Box<dyn SectionEffect>> {
-    vec![Box::new(drag::Drag), Box::new(clamp::Clamp), Box::new(wind::Wind)]
+    vec![
+        Box::new(drag::Drag),
+        Box::new(clamp::Clamp),
+        Box::new(friction::Friction),
+        Box::new(wind::Wind),
+    ]
 }
 
 /// Every effect name the forward model knows: the core ones ([`super::EFFECTS`]), then those

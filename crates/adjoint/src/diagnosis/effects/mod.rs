@@ -12,6 +12,7 @@
 //! | `initial_velocity` | `v(0) = v0 + w x (X - c)` | `backward`: `dJ/dv(0)` | `initial_velocity`, `initial_angular_velocity` | `0` | score |
 //! | `drag` | traction `-c v` on the surface: damping matrix `c W`, `W = diag(A_i)` ([`drag`]) | `backward`: `dJ/dc = sum_t lam_t . W (u_t - u_t+1)` | `drag` (1) | `c = 0` | score |
 //! | `clamp` | springs `-k W_s u` on the held surface instead of the rigid Nitsche hold ([`clamp`]) | `backward`: `dJ/dk = sum_t lam_t . W_s (cu u_t - ck u_t+1)` | `clamp` (1) | `k = infinity` (rigid) | initialized: `k = (lambda + 2 mu) / h` |
+//! | `friction` | tangential traction `-mu N_c P v_c` at each contact crossing, `N_c` its normal force ([`friction`]) | `local::friction_adjoint` per crossing | `friction` (1) | `mu = 0` | score (ground on only) |
 //! | `wind` (extended) | external force `sum_d w_d A_i e_d` ([`wind`]) | `backward`: `dJ/dc_k = dt sum_t lam_t . F_k` | `external_force` (3) | `w = 0` | score |
 //!
 //! A **score** probe evaluates the gradient and the Gauss-Newton matrix of the effect's
@@ -41,6 +42,7 @@ mod clamp;
 mod corotation;
 mod damping;
 mod drag;
+mod friction;
 mod gravity;
 mod ground;
 mod initial_velocity;
@@ -51,6 +53,7 @@ pub use clamp::Clamp;
 pub use corotation::Corotation;
 pub use damping::Damping;
 pub use drag::Drag;
+pub use friction::Friction;
 pub use gravity::Gravity;
 pub use ground::GroundContact;
 pub use initial_velocity::InitialVelocity;
@@ -122,6 +125,7 @@ pub fn catalogue() -> Vec<Box<dyn Effect>> {
         Box::new(InitialVelocity),
         Box::new(Drag),
         Box::new(Clamp),
+        Box::new(Friction),
     ]
 }
 

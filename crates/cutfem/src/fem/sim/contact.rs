@@ -13,10 +13,11 @@
 use super::Simulation;
 use crate::error::Error;
 use crate::fem::collision::{
-    add_ground_forces, penalty_residual, ContactScheme, Crossing, PENALTY_MAX_ITERATIONS, PENALTY_TOLERANCE,
+    add_friction_forces, add_ground_forces, penalty_residual, ContactScheme, Crossing,
+    PENALTY_MAX_ITERATIONS, PENALTY_TOLERANCE,
 };
 use crate::fem::step_info::StepInfo;
-use gpumat::{Matrix, Vec3};
+use gpumat::{Mat3, Matrix, Vec3};
 
 impl Simulation {
     /// Where the next [`Simulation::assemble_system`] linearizes a
@@ -28,10 +29,15 @@ impl Simulation {
     }
 
     /// Adds the ground's forces at the current state to `f` and returns the crossings in
-    /// contact with their slopes `(crossing, k softmin'(d))`; counts them in `info`.
-    pub(super) fn ground_forces(&mut self, info: &mut StepInfo) -> Vec<(Crossing, f64)> {
+    /// contact with their slopes `(crossing, k softmin'(d))`, and the friction's terms
+    /// `(crossing, mu N_c)` ([`add_friction_forces`]); counts the contacts in `info`.
+    pub(super) fn ground_forces(
+        &mut self,
+        info: &mut StepInfo,
+    ) -> (Vec<(Crossing, f64)>, Vec<(Crossing, f64)>) {
         let mut contact = std::mem::take(&mut self.contact);
         contact.clear();
+        let mut friction = Vec::new();
         if let Some(ground) = &self.model.ground {
             info.contacts = add_ground_forces(
                 &self.grid,
@@ -43,24 +49,37 @@ impl Simulation {
                 &mut self.f,
                 &mut contact,
             );
+            if let Some(mu) = self.model.friction {
+                add_friction_forces(
+                    &self.grid,
+                    &self.crossings,
+                    ground,
+                    mu,
+                    &self.u,
+                    self.model.dt,
+                    &mut self.f,
+                    &mut friction,
+                );
+            }
         }
-        contact
+        (contact, friction)
     }
 
-    /// Adds `scale * K_c` (the linearized contact stiffness of the crossings in `contact`, as
-    /// `(crossing, k softmin'(d))`) to the Newmark matrix, in the crossings' fixed order.
-    pub(super) fn add_contact_stiffness(&mut self, contact: &[(Crossing, f64)], n: Vec3<f64>, scale: f64) {
-        let nn = n.outer(n);
+    /// Adds `scale * (w w^T (x) block)` for each `(crossing, coefficient)` of `terms` to the
+    /// Newmark matrix, in the crossings' fixed order: the linearized contact stiffness `K_c`
+    /// (`block = n n^T`, coefficients `k softmin'(d)`) and the friction (`block = I - n n^T`,
+    /// coefficients `mu N_c`).
+    pub(super) fn add_crossing_blocks(&mut self, terms: &[(Crossing, f64)], block: Mat3<f64>, scale: f64) {
         let pattern = self.assembler.pattern().clone();
         let values = self.a.batch_values_mut(0);
-        for &(c, slope) in contact {
+        for &(c, slope) in terms {
             let w = [(c.a, 1.0 - c.t), (c.b, c.t)];
             for &(p, wp) in &w {
                 for &(q, wq) in &w {
                     let k = pattern
                         .find(p as usize, q as usize)
                         .expect("crossing corners share a cell");
-                    values[k] = values[k] + nn * (scale * slope * wp * wq);
+                    values[k] = values[k] + block * (scale * slope * wp * wq);
                 }
             }
         }

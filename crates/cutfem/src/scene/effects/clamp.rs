@@ -100,7 +100,10 @@ mod tests {
 
     #[test]
     fn the_scene_section_becomes_springs_on_the_held_surface() {
-        let s = scene(&format!("{HOLD}[clamp]\nstiffness = 5e4\n")).unwrap();
+        let s = scene(&format!(
+            "{HOLD}[clamp]\nstiffness = 5e4\n[gravity]\nacceleration = [0.0, -10.0, 0.0]\n"
+        ))
+        .unwrap();
         assert!(s.effect_on("clamp"));
         let grid = Grid::new(s.body_sdf().unwrap()).unwrap();
         let model = s.build_model(&grid).unwrap();

@@ -192,7 +192,7 @@ mod tests {
             "{err}"
         );
         assert!(
-            err.contains("effects with their own section: drag, clamp, wind"),
+            err.contains("effects with their own section: drag, clamp, friction, wind"),
             "{err}"
         );
         let err = model_err("[model]\neffects = [\"magic\"]\n");
