@@ -19,6 +19,10 @@ use crate::fem::collision::{
 use crate::fem::step_info::StepInfo;
 use gpumat::{Mat3, Matrix, Vec3};
 
+/// Per crossing, a coefficient of its `w w^T (x) block` term in the Newmark matrix
+/// ([`Simulation::add_crossing_blocks`]).
+type CrossingTerms = Vec<(Crossing, f64)>;
+
 impl Simulation {
     /// Where the next [`Simulation::assemble_system`] linearizes a
     /// [`ContactScheme::Penalty`] contact: at `at` (the adjoint and tangent passes give the
@@ -31,10 +35,7 @@ impl Simulation {
     /// Adds the ground's forces at the current state to `f` and returns the crossings in
     /// contact with their slopes `(crossing, k softmin'(d))`, and the friction's terms
     /// `(crossing, mu N_c)` ([`add_friction_forces`]); counts the contacts in `info`.
-    pub(super) fn ground_forces(
-        &mut self,
-        info: &mut StepInfo,
-    ) -> (Vec<(Crossing, f64)>, Vec<(Crossing, f64)>) {
+    pub(super) fn ground_forces(&mut self, info: &mut StepInfo) -> (CrossingTerms, CrossingTerms) {
         let mut contact = std::mem::take(&mut self.contact);
         contact.clear();
         let mut friction = Vec::new();
