@@ -90,6 +90,19 @@ pub const ALL: [Param; 14] = [
 ];
 
 impl Param {
+    /// True when it is fitted as the logarithm of a positive quantity (one coordinate).
+    pub fn is_log(self) -> bool {
+        matches!(
+            self,
+            Param::Young
+                | Param::Density
+                | Param::DampingMass
+                | Param::DampingStiffness
+                | Param::Drag
+                | Param::Clamp
+                | Param::Friction
+        )
+    }
     /// The interface name.
     pub fn name(self) -> &'static str {
         match self {
@@ -218,15 +231,10 @@ impl ParamSet {
     pub fn log_coordinates(&self) -> Vec<bool> {
         let mut out = Vec::new();
         for p in &self.params {
-            match p {
-                Param::Young
-                | Param::Density
-                | Param::DampingMass
-                | Param::DampingStiffness
-                | Param::Drag
-                | Param::Clamp
-                | Param::Friction => out.push(true),
-                _ => out.extend(vec![false; self.component_count(*p)]),
+            if p.is_log() {
+                out.push(true);
+            } else {
+                out.extend(vec![false; self.component_count(*p)]);
             }
         }
         out
