@@ -289,7 +289,6 @@ pub fn diagnose(
         off: &off,
         settings,
         points: records.len(),
-        floor: noise_floor,
     };
     let candidates = search.candidates(&data, progress, total);
     progress("verdict", total, total);
@@ -383,8 +382,6 @@ struct Search<'a> {
     settings: &'a DiagnoseParams,
     /// the residual count (the BIC penalty per parameter is its log)
     points: usize,
-    /// the noise floor: a refit that reaches it is not tried from a second start
-    floor: f64,
 }
 
 impl Search<'_> {
@@ -444,7 +441,6 @@ impl Search<'_> {
                 effect.as_ref(),
                 &mut candidates[i],
                 settings.refit_iterations,
-                self.floor,
             );
         }
         // refitted candidates by Delta BIC, then the rest by score

@@ -254,16 +254,8 @@ pub fn probe(setup: &Setup, base: &BaseFit, effect: &dyn Effect, data: &DataCont
 }
 
 /// Refits a probed candidate for `iterations` Gauss-Newton iterations and sets its rms and
-/// `Delta BIC`; a refit whose rms reaches the noise floor `floor` is not tried again from the
-/// scene's own values.
-pub fn refit(
-    setup: &Setup,
-    base: &BaseFit,
-    effect: &dyn Effect,
-    c: &mut Candidate,
-    iterations: usize,
-    floor: f64,
-) {
+/// `Delta BIC`.
+pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candidate, iterations: usize) {
     let Some(scene) = c.scene.clone() else { return };
     let run = || -> Result<(Vec<f64>, Evaluation, Problem), Error> {
         let (mut problem, x0) = extended_problem(setup, base, &scene, &effect.params())?;
@@ -319,12 +311,10 @@ pub fn refit(
         // hidden ground stops it, the Poisson ratio pushed to its bound to mimic a hidden drag),
         // and a start's cost before the effect's values are fitted says little about where a
         // refit ends: refit from the scene's own values too (their magnitudes scanned as well)
-        // and keep the better; unless the first refit already reached the noise floor `floor`
-        // (nothing left to gain: on the 80-step bar the second refit was a third of the time)
-        let at_floor = fit.as_ref().is_ok_and(|f| f.1.rms() <= floor);
-        if let (Some(mut xs), Some(cost), false) =
-            (scene_start.filter(|xs| *xs != start), scene_cost, at_floor)
-        {
+        // and keep the better (also when the first reached the stated noise floor: on
+        // noise-free data the floor is an upper bound, and the torus' hidden damping refitted
+        // to 2.7e-4 under a floor of 4.7e-4 lost to drag at 3e-5; the second reaches 0)
+        if let (Some(mut xs), Some(cost)) = (scene_start.filter(|xs| *xs != start), scene_cost) {
             scan_magnitudes(&mut problem, base.x.len(), &mut xs, cost);
             if let Ok(other) = fit_problem(&mut problem, &xs, iterations) {
                 if fit.as_ref().map_or(true, |f| other.1.cost < f.1.cost) {
