@@ -252,7 +252,7 @@ impl ParamSet {
     /// A plausible box for the coordinates of a fit starting at `x0`: Young's modulus and the
     /// density within a factor 100 of the start, the Poisson ratio in `[0.01, 0.49]`, damping
     /// coefficients (and the friction) in `[1e-6, 1e4]`, the stiffness field's factors within `[1/100, 100]`, the
-    /// clamp's stiffness from 1e-6 to 100 times the start (it starts nearly rigid);
+    /// clamp's stiffness from 1e-6 to 100 times the start (it can soften far, stiffen less);
     /// the rest unbounded.
     pub fn bounds(&self, x0: &[f64]) -> Vec<(f64, f64)> {
         let logit = |nu: f64| (2.0 * nu / (1.0 - 2.0 * nu)).ln();

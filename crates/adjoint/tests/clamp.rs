@@ -6,26 +6,13 @@
 
 mod common;
 
-use adjoint::cost::DisplacementCost;
+use common::{bar_grid as grid, every_effect, momentum, problem};
+
 use adjoint::params::ParamSet;
-use adjoint::problem::Problem;
-use cutfem::fem::collision::{ContactScheme, Ground};
-use cutfem::fem::{Aabb, Grid, Model, NodalDamping, Simulation};
+use cutfem::fem::{Aabb, Model, NodalDamping, Simulation};
 use cutfem::scene::effects::wind::node_areas;
-use cutfem::shapes::Shape;
 use gpumat::Vec3;
 use std::sync::Arc;
-
-const STEPS: usize = 8;
-
-/// A 0.6 x 0.2 x 0.2 bar along x.
-fn grid(resolution: f64) -> Grid {
-    let shape = Shape::Box {
-        center: [0.0, 0.25, 0.0],
-        size: [0.6, 0.2, 0.2],
-    };
-    Grid::new(shape.to_sdf(resolution, 6).unwrap()).unwrap()
-}
 
 /// Holds the bar's end face at x = -0.3 (its sides only along a sliver 1e-7 wide: a held sliver of side surface pins its cell's far corners as the springs stiffen).
 fn hold() -> Vec<Aabb> {
@@ -50,65 +37,18 @@ fn spring_force(sim: &Simulation, k: f64, u: &[Vec3<f64>]) -> Vec3<f64> {
     f
 }
 
-/// Every effect on: corotation, Rayleigh damping, gravity, ground contact, initial velocities,
-/// drag, and the clamp with stiffness `k`.
+/// Every effect on ([`every_effect`]) with the end-face hold, drag, and the clamp with
+/// stiffness `k`.
 fn model(k: f64) -> Model {
-    let g = grid(10.0);
-    let base = Model {
-        young: 3000.0,
-        poisson: 0.3,
-        density: 1.0,
-        damping_mass: 0.1,
-        damping_stiffness: 0.01,
-        gravity: Vec3::new(0.0, -10.0, 0.0),
-        ground: Some(Ground {
-            normal: Vec3::new(0.0, 1.0, 0.0),
-            height: 0.14,
-            stiffness: 1e3,
-            softness: 60.0,
-            scheme: ContactScheme::Implicit,
-        }),
+    Model {
         dirichlet: hold(),
-        initial_velocity: Vec3::new(0.1, -0.3, 0.05),
-        initial_angular_velocity: Vec3::new(0.2, 0.1, -0.3),
         drag: Some(NodalDamping {
-            weights: Arc::new(node_areas(&g)),
+            weights: Arc::new(node_areas(&grid(10.0))),
             coefficient: 0.3,
         }),
-        ..Model::default()
-    };
-    Model {
         support: Some(k),
-        ..base
+        ..every_effect()
     }
-}
-
-fn reference(m: Model) -> DisplacementCost {
-    let mut sim = Simulation::new(grid(10.0), m).unwrap();
-    sim.solver.direct = true;
-    let mut out = vec![sim.u.clone()];
-    for _ in 0..STEPS {
-        sim.step().unwrap();
-        out.push(sim.u.clone());
-    }
-    DisplacementCost {
-        reference: (2..=STEPS).step_by(2).map(|t| (t, 1.0, out[t].clone())).collect(),
-    }
-}
-
-fn problem(truth: Model, start: Model, params: &str) -> Problem {
-    let cost = reference(truth);
-    let mut sim = Simulation::new(grid(10.0), start).unwrap();
-    sim.solver.direct = true;
-    Problem::new(sim, ParamSet::parse(&[params]).unwrap(), Box::new(cost), STEPS).unwrap()
-}
-
-fn momentum(s: &Simulation) -> Vec3<f64> {
-    s.mass
-        .as_slice()
-        .iter()
-        .zip(s.v.as_slice())
-        .fold(Vec3::default(), |p, (&m, &v)| p + v * m)
 }
 
 /// Summed over the nodes the elastic forces cancel (corotated or not), so each Newmark step
@@ -237,7 +177,7 @@ fn the_springs_carry_the_weight_and_tend_to_the_rigid_hold() {
     assert!(gaps[1] < 0.6 * gaps[0] && gaps[1] < 0.1, "gaps {gaps:?}");
 }
 
-/// `dJ/dk = sum_t lam_t . W (cu u_t - ck u_{t+1})` against central differences, with every
+/// `dJ/dk = sum_t lam_t^T P (cu u_t - ck u_{t+1})` against central differences, with every
 /// other effect on (Rayleigh's `a2` fitted alongside: it damps the springs too).
 #[test]
 fn clamp_gradient_matches_finite_differences() {

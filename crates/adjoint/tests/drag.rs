@@ -5,24 +5,16 @@
 
 mod common;
 
-use adjoint::cost::DisplacementCost;
+use common::{bar_grid, every_effect, momentum, problem};
+
 use adjoint::params::ParamSet;
-use adjoint::problem::Problem;
-use cutfem::fem::collision::{ContactScheme, Ground};
-use cutfem::fem::{Aabb, Grid, Model, NodalDamping, Simulation};
+use cutfem::fem::{Grid, Model, NodalDamping, Simulation};
 use cutfem::scene::effects::wind::node_areas;
-use cutfem::shapes::Shape;
 use gpumat::Vec3;
 use std::sync::Arc;
 
-const STEPS: usize = 8;
-
 fn grid() -> Grid {
-    let shape = Shape::Box {
-        center: [0.0, 0.25, 0.0],
-        size: [0.6, 0.2, 0.2],
-    };
-    Grid::new(shape.to_sdf(10.0, 6).unwrap()).unwrap()
+    bar_grid(10.0)
 }
 
 fn drag(g: &Grid, c: f64) -> Option<NodalDamping> {
@@ -32,52 +24,12 @@ fn drag(g: &Grid, c: f64) -> Option<NodalDamping> {
     })
 }
 
-/// Every effect on: corotation, Rayleigh damping, gravity, ground contact, a clamp, initial
-/// velocities, and drag `c`.
+/// Every effect on ([`every_effect`]) and drag `c`.
 fn model(c: f64) -> Model {
     Model {
-        young: 3000.0,
-        poisson: 0.3,
-        density: 1.0,
-        damping_mass: 0.1,
-        damping_stiffness: 0.01,
-        gravity: Vec3::new(0.0, -10.0, 0.0),
-        ground: Some(Ground {
-            normal: Vec3::new(0.0, 1.0, 0.0),
-            height: 0.14,
-            stiffness: 1e3,
-            softness: 60.0,
-            scheme: ContactScheme::Implicit,
-        }),
-        dirichlet: vec![Aabb {
-            min: [-0.4, 0.0, -0.2],
-            max: [-0.22, 0.5, 0.2],
-        }],
-        initial_velocity: Vec3::new(0.1, -0.3, 0.05),
-        initial_angular_velocity: Vec3::new(0.2, 0.1, -0.3),
         drag: drag(&grid(), c),
-        ..Model::default()
+        ..every_effect()
     }
-}
-
-fn reference(m: Model) -> DisplacementCost {
-    let mut sim = Simulation::new(grid(), m).unwrap();
-    sim.solver.direct = true;
-    let mut out = vec![sim.u.clone()];
-    for _ in 0..STEPS {
-        sim.step().unwrap();
-        out.push(sim.u.clone());
-    }
-    DisplacementCost {
-        reference: (2..=STEPS).step_by(2).map(|t| (t, 1.0, out[t].clone())).collect(),
-    }
-}
-
-fn problem(truth: Model, start: Model, params: &str) -> Problem {
-    let cost = reference(truth);
-    let mut sim = Simulation::new(grid(), start).unwrap();
-    sim.solver.direct = true;
-    Problem::new(sim, ParamSet::parse(&[params]).unwrap(), Box::new(cost), STEPS).unwrap()
 }
 
 /// A free body (no gravity, no clamp, no ground) moving at `v0`: drag is the only external
@@ -105,13 +57,6 @@ fn drag_decays_a_free_body_s_momentum_as_the_analytic_rate() {
     let w = sim.model.drag.as_ref().unwrap().weights.clone();
     let area: f64 = w.iter().sum();
     let mass = sim.total_mass();
-    let momentum = |s: &Simulation| -> Vec3<f64> {
-        s.mass
-            .as_slice()
-            .iter()
-            .zip(s.v.as_slice())
-            .fold(Vec3::default(), |p, (&m, &v)| p + v * m)
-    };
     let p0 = momentum(&sim);
     let k = c * area / mass;
     let theta = sim.model.theta;

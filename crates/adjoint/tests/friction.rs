@@ -5,23 +5,15 @@
 
 mod common;
 
-use adjoint::cost::DisplacementCost;
+use common::{bar_grid, every_effect, momentum, problem};
+
 use adjoint::params::ParamSet;
-use adjoint::problem::Problem;
 use cutfem::fem::collision::{crossings, ContactScheme, Ground};
 use cutfem::fem::{Aabb, Grid, Model, Simulation};
-use cutfem::shapes::Shape;
 use gpumat::Vec3;
 
-const STEPS: usize = 8;
-
-/// A 0.6 x 0.2 x 0.2 block whose bottom is at y = 0.15.
 fn grid() -> Grid {
-    let shape = Shape::Box {
-        center: [0.0, 0.25, 0.0],
-        size: [0.6, 0.2, 0.2],
-    };
-    Grid::new(shape.to_sdf(10.0, 6).unwrap()).unwrap()
+    bar_grid(10.0)
 }
 
 fn ground(scheme: ContactScheme) -> Ground {
@@ -38,54 +30,17 @@ fn ground(scheme: ContactScheme) -> Ground {
     }
 }
 
-/// Every effect on: corotation, Rayleigh damping, gravity, ground contact, a clamp, initial
-/// velocities, and friction `mu`.
+/// Every effect on ([`every_effect`]) with an end-face hold, a faster slide, and friction `mu`.
 fn model(mu: f64) -> Model {
     Model {
-        young: 3000.0,
-        poisson: 0.3,
-        density: 1.0,
-        damping_mass: 0.1,
-        damping_stiffness: 0.01,
-        gravity: Vec3::new(0.0, -10.0, 0.0),
-        ground: Some(ground(ContactScheme::Implicit)),
         dirichlet: vec![Aabb {
             min: [-0.4, 0.0, -0.2],
             max: [-0.299, 0.5, 0.2],
         }],
         initial_velocity: Vec3::new(0.3, -0.3, 0.05),
-        initial_angular_velocity: Vec3::new(0.2, 0.1, -0.3),
         friction: Some(mu),
-        ..Model::default()
+        ..every_effect()
     }
-}
-
-fn reference(m: Model) -> DisplacementCost {
-    let mut sim = Simulation::new(grid(), m).unwrap();
-    sim.solver.direct = true;
-    let mut out = vec![sim.u.clone()];
-    for _ in 0..STEPS {
-        sim.step().unwrap();
-        out.push(sim.u.clone());
-    }
-    DisplacementCost {
-        reference: (2..=STEPS).step_by(2).map(|t| (t, 1.0, out[t].clone())).collect(),
-    }
-}
-
-fn problem(truth: Model, start: Model, params: &str) -> Problem {
-    let cost = reference(truth);
-    let mut sim = Simulation::new(grid(), start).unwrap();
-    sim.solver.direct = true;
-    Problem::new(sim, ParamSet::parse(&[params]).unwrap(), Box::new(cost), STEPS).unwrap()
-}
-
-fn momentum(s: &Simulation) -> Vec3<f64> {
-    s.mass
-        .as_slice()
-        .iter()
-        .zip(s.v.as_slice())
-        .fold(Vec3::default(), |p, (&m, &v)| p + v * m)
 }
 
 /// A free block landing while it slides along x (gravity along -y, the ground's normal +y):

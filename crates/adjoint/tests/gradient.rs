@@ -9,45 +9,20 @@ use adjoint::cost::{Cost, DisplacementCost, ObservedPoint, PointCloudCost, Robus
 use adjoint::params::ParamSet;
 use adjoint::problem::Problem;
 use cutfem::fem::advect::Diffusion;
-use cutfem::fem::collision::{ContactScheme, Ground};
+use cutfem::fem::collision::ContactScheme;
 use cutfem::fem::element::Element;
-use cutfem::fem::{Aabb, Grid, Model, Simulation};
-use cutfem::shapes::Shape;
+use cutfem::fem::{Grid, Model, Simulation};
 use gpumat::{Matrix, Vec3};
 
 const STEPS: usize = 8;
 
 fn grid() -> Grid {
-    let shape = Shape::Box {
-        center: [0.0, 0.25, 0.0],
-        size: [0.6, 0.2, 0.2],
-    };
-    Grid::new(shape.to_sdf(10.0, 6).unwrap()).unwrap()
+    common::bar_grid(10.0)
 }
 
+/// Every effect on ([`common::every_effect`]).
 fn truth() -> Model {
-    Model {
-        young: 3000.0,
-        poisson: 0.3,
-        density: 1.0,
-        damping_mass: 0.1,
-        damping_stiffness: 0.01,
-        gravity: Vec3::new(0.0, -10.0, 0.0),
-        ground: Some(Ground {
-            normal: Vec3::new(0.0, 1.0, 0.0),
-            height: 0.14,
-            stiffness: 1e3,
-            softness: 60.0,
-            scheme: ContactScheme::Implicit,
-        }),
-        dirichlet: vec![Aabb {
-            min: [-0.4, 0.0, -0.2],
-            max: [-0.22, 0.5, 0.2],
-        }],
-        initial_velocity: Vec3::new(0.1, -0.3, 0.05),
-        initial_angular_velocity: Vec3::new(0.2, 0.1, -0.3),
-        ..Model::default()
-    }
+    common::every_effect()
 }
 
 /// A start model away from the truth in every parameter.

@@ -1,7 +1,81 @@
-//! Derivative checks shared by the adjoint crate's test files.
+//! What the adjoint crate's test files share: the small bar with every effect on, its
+//! displacement-cost problems, the momentum of a simulation, and the derivative checks.
 #![allow(dead_code)] // each test file uses a part
 
+use adjoint::cost::DisplacementCost;
+use adjoint::params::ParamSet;
 use adjoint::problem::Problem;
+use cutfem::fem::collision::{ContactScheme, Ground};
+use cutfem::fem::{Aabb, Grid, Model, Simulation};
+use cutfem::shapes::Shape;
+use gpumat::Vec3;
+
+/// Integrator steps of the problems of [`problem`].
+pub const STEPS: usize = 8;
+
+/// A 0.6 x 0.2 x 0.2 bar along x centred at y = 0.25 (its bottom at y = 0.15), `resolution`
+/// cells per unit.
+pub fn bar_grid(resolution: f64) -> Grid {
+    let shape = Shape::Box {
+        center: [0.0, 0.25, 0.0],
+        size: [0.6, 0.2, 0.2],
+    };
+    Grid::new(shape.to_sdf(resolution, 6).unwrap()).unwrap()
+}
+
+/// Every core effect on for [`bar_grid`]: corotation, Rayleigh damping, gravity, ground
+/// contact just below the bar, a clamp of its left end, initial velocities.
+pub fn every_effect() -> Model {
+    Model {
+        young: 3000.0,
+        poisson: 0.3,
+        density: 1.0,
+        damping_mass: 0.1,
+        damping_stiffness: 0.01,
+        gravity: Vec3::new(0.0, -10.0, 0.0),
+        ground: Some(Ground {
+            normal: Vec3::new(0.0, 1.0, 0.0),
+            height: 0.14,
+            stiffness: 1e3,
+            softness: 60.0,
+            scheme: ContactScheme::Implicit,
+        }),
+        dirichlet: vec![Aabb {
+            min: [-0.4, 0.0, -0.2],
+            max: [-0.22, 0.5, 0.2],
+        }],
+        initial_velocity: Vec3::new(0.1, -0.3, 0.05),
+        initial_angular_velocity: Vec3::new(0.2, 0.1, -0.3),
+        ..Model::default()
+    }
+}
+
+/// The displacement cost of `truth` on [`bar_grid`]`(10)` at every second of [`STEPS`] steps,
+/// and the problem of fitting `params` from `start` (direct solves).
+pub fn problem(truth: Model, start: Model, params: &str) -> Problem {
+    let mut sim = Simulation::new(bar_grid(10.0), truth).unwrap();
+    sim.solver.direct = true;
+    let mut out = vec![sim.u.clone()];
+    for _ in 0..STEPS {
+        sim.step().unwrap();
+        out.push(sim.u.clone());
+    }
+    let cost = DisplacementCost {
+        reference: (2..=STEPS).step_by(2).map(|t| (t, 1.0, out[t].clone())).collect(),
+    };
+    let mut sim = Simulation::new(bar_grid(10.0), start).unwrap();
+    sim.solver.direct = true;
+    Problem::new(sim, ParamSet::parse(&[params]).unwrap(), Box::new(cost), STEPS).unwrap()
+}
+
+/// The momentum `sum_i m_i v_i` of `s`.
+pub fn momentum(s: &Simulation) -> Vec3<f64> {
+    s.mass
+        .as_slice()
+        .iter()
+        .zip(s.v.as_slice())
+        .fold(Vec3::default(), |p, (&m, &v)| p + v * m)
+}
 
 /// The adjoint gradient at `x` against central differences of the cost: per coordinate, the
 /// best relative difference over the steps 1e-3, 1e-4, 1e-5 is below `tol`.

@@ -2,7 +2,7 @@
 //! displacement) on the surface the `[[dirichlet]]` boxes hold instead of a rigid hold (one
 //! parameter, fitted in log space). Its physics and its `[clamp]` section are the forward half,
 //! [`cutfem::scene::effects::clamp`]; the adjoint
-//! `dJ/dk = sum_t lam_t . W (cu u_t - ck u_{t+1})` is in [`crate::backward`].
+//! `dJ/dk = sum_t lam_t^T P (cu u_t - ck u_{t+1})` is in [`crate::backward`].
 //!
 //! **Neutral value and probe.** The effect is off at `k = infinity` (the rigid hold), where a
 //! log coordinate cannot sit, and a stiff start does not work either: the springs' effect on

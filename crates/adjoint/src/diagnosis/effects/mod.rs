@@ -11,7 +11,7 @@
 //! | `stiffness_field` | per-cell factor on `E` | `backward`: per-cell `dJ/ds_e` | `stiffness_field` (coarse log factors) | all factors 1 | score |
 //! | `initial_velocity` | `v(0) = v0 + w x (X - c)` | `backward`: `dJ/dv(0)` | `initial_velocity`, `initial_angular_velocity` | `0` | score |
 //! | `drag` | traction `-c v` on the surface: damping matrix `c W`, `W = diag(A_i)` ([`drag`]) | `backward`: `dJ/dc = sum_t lam_t . W (u_t - u_t+1)` | `drag` (1) | `c = 0` | score |
-//! | `clamp` | springs `-k W_s u` on the held surface instead of the rigid Nitsche hold ([`clamp`]) | `backward`: `dJ/dk = sum_t lam_t . W_s (cu u_t - ck u_t+1)` | `clamp` (1) | `k = infinity` (rigid) | initialized: `k = (lambda + 2 mu) / h` |
+//! | `clamp` | springs `-k P u`, `P_ij = int N_i N_j` over the held surface, instead of the rigid Nitsche hold ([`clamp`]) | `backward`: `dJ/dk = sum_t lam_t^T P (cu u_t - ck u_t+1)` | `clamp` (1) | `k = infinity` (rigid) | initialized: `k = (lambda + 2 mu) / h` |
 //! | `friction` | tangential traction `-mu N_c P v_c` at each contact crossing, `N_c` its normal force ([`friction`]) | `local::friction_adjoint` per crossing | `friction` (1) | `mu = 0` | score (ground on only) |
 //! | `wind` (extended) | external force `sum_d w_d A_i e_d` ([`wind`]) | `backward`: `dJ/dc_k = dt sum_t lam_t . F_k` | `external_force` (3) | `w = 0` | score |
 //!
