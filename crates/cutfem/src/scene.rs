@@ -338,6 +338,15 @@ impl Scene {
             .insert(name.to_string(), Extension { table, line });
     }
 
+    /// Writes an effect's section struct as the extension section `[name]` (the write twin of
+    /// [`Scene::extension`]).
+    pub fn set_section<T: serde::Serialize>(&mut self, name: &str, section: &T) {
+        let toml::Value::Table(t) = toml::Value::try_from(section).expect("a section serializes") else {
+            unreachable!("a struct serializes to a table")
+        };
+        self.set_extension(name, t);
+    }
+
     /// Resolves a path given in the scene.
     pub fn resolve(&self, p: &Path) -> PathBuf {
         if p.is_absolute() {

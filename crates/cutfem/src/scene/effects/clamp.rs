@@ -56,10 +56,7 @@ impl ClampSection {
     }
     /// Writes it into `scene` as its `[clamp]` section.
     pub fn set(self, scene: &mut Scene) {
-        let toml::Value::Table(t) = toml::Value::try_from(self).expect("a table") else {
-            unreachable!("a struct serializes to a table")
-        };
-        scene.set_extension("clamp", t);
+        scene.set_section("clamp", &self);
     }
 }
 

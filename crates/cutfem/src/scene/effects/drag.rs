@@ -56,10 +56,7 @@ impl DragSection {
     }
     /// Writes it into `scene` as its `[drag]` section.
     pub fn set(self, scene: &mut Scene) {
-        let toml::Value::Table(t) = toml::Value::try_from(self).expect("a table") else {
-            unreachable!("a struct serializes to a table")
-        };
-        scene.set_extension("drag", t);
+        scene.set_section("drag", &self);
     }
 }
 

@@ -53,10 +53,7 @@ impl FrictionSection {
     }
     /// Writes it into `scene` as its `[friction]` section.
     pub fn set(self, scene: &mut Scene) {
-        let toml::Value::Table(t) = toml::Value::try_from(self).expect("a table") else {
-            unreachable!("a struct serializes to a table")
-        };
-        scene.set_extension("friction", t);
+        scene.set_section("friction", &self);
     }
 }
 

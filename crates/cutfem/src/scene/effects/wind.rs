@@ -61,10 +61,7 @@ impl WindSection {
     }
     /// Writes it into `scene` as its `[wind]` section.
     pub fn set(self, scene: &mut Scene) {
-        let toml::Value::Table(t) = toml::Value::try_from(self).expect("a table") else {
-            unreachable!("a struct serializes to a table")
-        };
-        scene.set_extension("wind", t);
+        scene.set_section("wind", &self);
     }
 }
 
