@@ -11,6 +11,7 @@ pub mod report;
 pub mod stream;
 pub mod table_adjoint;
 pub mod table_diagnose;
+pub mod table_hidden;
 pub mod table_lincomb;
 pub mod table_sparse;
 pub mod thesis;

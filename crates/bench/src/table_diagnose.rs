@@ -162,7 +162,7 @@ fn bar_row() -> Result<Row, String> {
 }
 
 /// The `softbody` binary beside this one.
-fn softbody_binary() -> Result<PathBuf, String> {
+pub fn softbody_binary() -> Result<PathBuf, String> {
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let bin = exe.with_file_name(format!("softbody{}", std::env::consts::EXE_SUFFIX));
     if !bin.exists() {

@@ -84,7 +84,7 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     let bar = progress::bar(1, "diagnose", job.quiet);
     // wall seconds per stage: each progress message starts a stage
     let mut stages: Vec<(String, Instant)> = Vec::new();
-    let d = diagnose(
+    let mut d = diagnose(
         job.scene,
         &setup,
         job.params,
@@ -97,32 +97,9 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
         },
     )?;
     bar.finish_and_clear();
-    stages.push(("report".into(), Instant::now()));
 
-    let hist_path = history::history_path(job.scene_path);
-    let mut entry = Entry::now(job.command, d.effects.clone(), d.fitted.clone(), d.rms);
-    entry.noise_floor = Some(d.noise_floor);
-    entry.missing_effect = d.missing_effect.clone();
-    history::append(&hist_path, &entry)?;
-    let entries = history::read(&hist_path)?;
-
-    // pictures
-    let mut sim = job.scene.build_simulation().map_err(|e| e.to_string())?;
-    let (reference, worst) =
-        adjoint::diagnosis::residuals::surfaces_at(&mut sim, d.model.clone(), d.worst_frame)?;
-    let gravity = job
-        .scene
-        .effect_on("gravity")
-        .then(|| d.model.gravity.to_array())
-        .filter(|g| g.iter().any(|v| *v != 0.0));
-    let inputs = crate::diagnose_report::PictureInputs {
-        reference: &reference,
-        worst: &worst,
-        gravity,
-        history: &entries,
-    };
-    let pictures = crate::diagnose_report::write_pictures(out, &d, &inputs)?;
-    let discretisation = if job.refine_check {
+    let sim = job.scene.build_simulation().map_err(|e| e.to_string())?;
+    let mut discretisation = if job.refine_check {
         let params = adjoint::refine::RefineParams {
             frames: Some(job.observations.frame_numbers()),
             ..Default::default()
@@ -139,6 +116,38 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     } else {
         None
     };
+    // an effect whose improvement is within the model's own discretisation error is not
+    // called missing (docs/effects.md, "Discretisation is not missing physics")
+    if let Some(v) = discretisation.as_mut() {
+        if let Some(estimate) = v["estimate"].as_f64() {
+            v["withdrew"] =
+                serde_json::Value::from(adjoint::diagnosis::weigh_discretisation(&mut d, estimate));
+        }
+    }
+    stages.push(("report".into(), Instant::now()));
+    let hist_path = history::history_path(job.scene_path);
+    let mut entry = Entry::now(job.command, d.effects.clone(), d.fitted.clone(), d.rms);
+    entry.noise_floor = Some(d.noise_floor);
+    entry.missing_effect = d.missing_effect.clone();
+    history::append(&hist_path, &entry)?;
+    let entries = history::read(&hist_path)?;
+
+    // pictures
+    let mut sim = sim;
+    let (reference, worst) =
+        adjoint::diagnosis::residuals::surfaces_at(&mut sim, d.model.clone(), d.worst_frame)?;
+    let gravity = job
+        .scene
+        .effect_on("gravity")
+        .then(|| d.model.gravity.to_array())
+        .filter(|g| g.iter().any(|v| *v != 0.0));
+    let inputs = crate::diagnose_report::PictureInputs {
+        reference: &reference,
+        worst: &worst,
+        gravity,
+        history: &entries,
+    };
+    let pictures = crate::diagnose_report::write_pictures(out, &d, &inputs)?;
     let mut summary = summary_json(&d, &pictures, &hist_path, t0.elapsed().as_secs_f64());
     summary["stage_seconds"] = stage_seconds(&stages, Instant::now());
     if let Some(v) = discretisation {

@@ -14,14 +14,16 @@ use bench::peers::Peers;
 use bench::report::{col, markdown_table, Fmt};
 use bench::timing::Policy;
 use bench::{
-    progress, stream, table_adjoint, table_cuboid, table_diagnose, table_lincomb, table_sparse, thesis, Ctx,
+    progress, stream, table_adjoint, table_cuboid, table_diagnose, table_hidden, table_lincomb, table_sparse,
+    thesis, Ctx,
 };
 use clap::Parser;
 use serde::Serialize;
 use serde_json::{json, Value};
 use std::io::Write;
 
-/// Reproduces the thesis' Tables B.1-B.6 and 5.2 on this machine.
+/// Reproduces the thesis' Tables B.1-B.6 and 5.2 on this machine, and our own Tables D (diagnosis
+/// speed) and H (the diagnosis on the independent hidden-effect cases).
 #[derive(Parser, Debug)]
 #[command(version, about)]
 struct Args {
@@ -40,6 +42,9 @@ struct Args {
     /// Also write the markdown report to this file.
     #[arg(long, value_name = "PATH")]
     markdown: Option<std::path::PathBuf>,
+    /// Write the pictures of the tables (Table H: `detection_curves.svg`) into this folder.
+    #[arg(long, value_name = "DIR")]
+    figures: Option<std::path::PathBuf>,
     /// Internal: the child process of Table 5.2's memory run (observations CSV).
     #[arg(long, hide = true, requires = "adjoint_memory_steps")]
     adjoint_memory_child: Option<std::path::PathBuf>,
@@ -67,6 +72,8 @@ struct Tables {
     t52: Option<Vec<table_adjoint::Row>>,
     #[serde(rename = "D", skip_serializing_if = "Option::is_none")]
     d: Option<Vec<table_diagnose::Row>>,
+    #[serde(rename = "H", skip_serializing_if = "Option::is_none")]
+    h: Option<Vec<table_hidden::Row>>,
 }
 
 /// The JSON report: exactly this object is printed with `--json`.
@@ -363,6 +370,9 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
     if tables.contains_key("5.2") {
         s.push_str(&table_adjoint::markdown(&rows("5.2")));
     }
+    if tables.contains_key("H") {
+        s.push_str(&table_hidden::markdown(&rows("H")));
+    }
     s
 }
 
@@ -472,6 +482,18 @@ fn main() {
         None => (None, Vec::new()),
     };
     let d = wanted("D").then(|| table_diagnose::table(args.quick));
+    let h = wanted("H").then(|| table_hidden::table(args.quick));
+    if let (Some(rows), Some(dir)) = (&h, &args.figures) {
+        let rows: Vec<Value> = rows
+            .iter()
+            .map(|r| serde_json::to_value(r).expect("row"))
+            .collect();
+        let path = dir.join("detection_curves.svg");
+        if let Err(e) = std::fs::write(&path, table_hidden::svg(&rows)) {
+            eprintln!("error: cannot write {}: {e}", path.display());
+            std::process::exit(1);
+        }
+    }
     let typed = Tables {
         b1,
         b2,
@@ -481,6 +503,7 @@ fn main() {
         b6,
         t52,
         d,
+        h,
     };
     let stream_gbs = stream_runs.iter().copied().fold(0.0, f64::max);
     progress(&format!("STREAM triad samples {stream_runs:.1?} GB/s"));
