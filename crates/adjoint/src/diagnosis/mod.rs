@@ -483,7 +483,11 @@ impl Search<'_> {
             // are not log coordinates (the cost is near quadratic in them: initial velocities,
             // the stiffness field's log factors about 0); a log coordinate probed near 0 (drag,
             // damping, friction) or a data-driven start moves far, and its prediction is a poor
-            // bound. On the 80-step bar the two hopeless refits skipped so were 200 of 268 s.
+            // bound: it is compared with the confirmed candidate's own prediction too (the larger
+            // of its prediction and its refit), for two probes alike predict alike. On the 80-step
+            // bar the two hopeless refits skipped so were 200 of 268 s; on the independent bar
+            // with hidden mass damping (noise 0.0025) drag, refitted first to 0.0032 from a
+            // prediction as poor as damping's, otherwise kept damping from its refit.
             let best = candidates[..i]
                 .iter()
                 .filter(|c| c.rms_after.is_some())
@@ -498,8 +502,13 @@ impl Search<'_> {
                 .expect("listed");
             let reliable = effect.probe() == Probe::Score && effect.params().iter().all(|p| !p.is_log());
             if let Some(b) = best {
-                let far = if reliable { CLOSE_FACTOR } else { 2.0 };
-                let worse = candidates[i].predicted_rms > far * b.rms_after.unwrap_or(f64::INFINITY);
+                let confirmed = b.rms_after.unwrap_or(f64::INFINITY);
+                let (far, reference) = if reliable {
+                    (CLOSE_FACTOR, confirmed)
+                } else {
+                    (2.0, confirmed.max(b.predicted_rms))
+                };
+                let worse = candidates[i].predicted_rms > far * reference;
                 if worse && candidates[i].params.len() >= b.params.len() {
                     continue;
                 }
