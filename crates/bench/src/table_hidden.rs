@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// One case.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct Row {
     /// `<case>/<style>-<sigma>`
     pub case: String,
@@ -194,6 +194,21 @@ pub fn table(quick: bool) -> Vec<Row> {
 /// Diagnoses run at a time by [`table`].
 const JOBS: usize = 2;
 
+/// The rows of Table H in an earlier `tables --json` report.
+pub fn rows_from_report(path: &Path) -> Result<Vec<Row>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let v: Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let rows = v["tables"]["H"]
+        .as_array()
+        .ok_or_else(|| format!("{}: no `tables.H` rows", path.display()))?;
+    rows.iter()
+        .enumerate()
+        .map(|(i, r)| {
+            serde_json::from_value(r.clone()).map_err(|e| format!("{}: tables.H[{i}]: {e}", path.display()))
+        })
+        .collect()
+}
+
 /// One point of the detection curves.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct CurvePoint {
@@ -212,7 +227,8 @@ pub struct CurvePoint {
     pub controls: usize,
 }
 
-/// The detection curves of one hidden effect (`None`: every effect), from rows as JSON.
+/// The detection curves of one hidden effect (`None`: every effect), from rows as JSON; an
+/// effect's curve has points only at the noise levels where it has cases.
 pub fn curves(rows: &[Value], effect: Option<&str>) -> Vec<CurvePoint> {
     let mut sigmas: Vec<f64> = rows.iter().filter_map(|r| r["sigma"].as_f64()).collect();
     sigmas.sort_by(f64::total_cmp);
@@ -220,7 +236,7 @@ pub fn curves(rows: &[Value], effect: Option<&str>) -> Vec<CurvePoint> {
     let ran = |r: &&Value| r["right"].is_boolean();
     sigmas
         .into_iter()
-        .map(|s| {
+        .filter_map(|s| {
             let at = rows.iter().filter(ran).filter(|r| r["sigma"].as_f64() == Some(s));
             let hidden: Vec<&Value> = at
                 .clone()
@@ -230,14 +246,17 @@ pub fn curves(rows: &[Value], effect: Option<&str>) -> Vec<CurvePoint> {
             let share = |v: &[&Value], f: &dyn Fn(&Value) -> bool| {
                 v.iter().filter(|r| f(r)).count() as f64 / v.len().max(1) as f64
             };
-            CurvePoint {
+            if effect.is_some() && hidden.is_empty() {
+                return None;
+            }
+            Some(CurvePoint {
                 sigma: s,
                 detection: share(&hidden, &|r| r["right"] == true),
                 detection_or_tied: share(&hidden, &|r| r["right"] == true || r["tied"] == true),
                 hidden_cases: hidden.len(),
                 false_alarm: share(&controls, &|r| r["missing"].is_string()),
                 controls: controls.len(),
-            }
+            })
         })
         .collect()
 }
@@ -443,8 +462,10 @@ mod tests {
         assert_eq!((all[0].false_alarm, all[0].controls), (0.5, 2));
         assert_eq!((all[1].detection, all[1].hidden_cases), (1.0, 1));
         assert_eq!((all[1].false_alarm, all[1].controls), (0.0, 1));
+        // an effect's curve has no point where it has no case
         let drag = curves(&rows, Some("drag"));
-        assert_eq!((drag[1].detection, drag[1].hidden_cases), (0.0, 0));
+        assert_eq!(drag.len(), 1);
+        assert_eq!(drag[0].sigma, 0.01);
         assert_eq!(effects(&rows), vec!["drag", "clamp"]);
         let pic = svg(&rows);
         assert!(pic.starts_with("<svg") && pic.contains("false alarms") && pic.ends_with("</svg>\n"));

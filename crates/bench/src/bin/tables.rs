@@ -42,6 +42,10 @@ struct Args {
     /// Also write the markdown report to this file.
     #[arg(long, value_name = "PATH")]
     markdown: Option<std::path::PathBuf>,
+    /// Table H from the rows of an earlier `--json` report instead of running the diagnoses
+    /// (to redraw its markdown and picture).
+    #[arg(long, value_name = "REPORT.json")]
+    hidden_rows: Option<std::path::PathBuf>,
     /// Write the pictures of the tables (Table H: `detection_curves.svg`) into this folder.
     #[arg(long, value_name = "DIR")]
     figures: Option<std::path::PathBuf>,
@@ -482,7 +486,13 @@ fn main() {
         None => (None, Vec::new()),
     };
     let d = wanted("D").then(|| table_diagnose::table(args.quick));
-    let h = wanted("H").then(|| table_hidden::table(args.quick));
+    let h = wanted("H").then(|| match &args.hidden_rows {
+        Some(path) => table_hidden::rows_from_report(path).unwrap_or_else(|e| {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }),
+        None => table_hidden::table(args.quick),
+    });
     if let (Some(rows), Some(dir)) = (&h, &args.figures) {
         let rows: Vec<Value> = rows
             .iter()
