@@ -23,6 +23,11 @@ a1 = 0.8 unless said otherwise):
                     surface mass matrix of the face), instead of fixed nodes
   inclusion         a stiff cube (5 E, side 0.05) in the middle of the bar: too small to see
 
+The controls (nothing hidden): the base bar and the stiff inclusion at every style and level;
+the complete model of the damped, drag, clamp and initial-velocity variants (the effect in
+the scene at its true strength and fitted with E and nu); generate.py's landing sphere with
+its ground.
+
 Styles (noise: isotropic Gaussian sigma for the sampled styles, Gaussian depth noise sigma
 for the camera):
 
@@ -34,6 +39,8 @@ for the camera):
 Writes OUT/hidden/ (default tests/reference_values/independent/hidden):
   <variant>/<style>-<sigma>.csv [+ .cameras.json]   the observations
   scenes/<case>.toml                                the scene given to diagnose
+  scenes/complete-<effect>.toml                     controls: the complete model, the
+                                                    effect in the scene and fitted
   cases.json                                        every case: scene, observations,
                                                     hidden effect (null for controls),
                                                     true noise, truth
@@ -82,8 +89,10 @@ VARIANTS = {
 }
 STYLES = ("samples", "partial", "camera")
 SIGMAS = (0.0025, 0.005, 0.01, 0.02, 0.04)
-# the partial and camera styles at two levels (repository size)
+# the partial and camera styles at two levels (repository size); the controls' variants at all
+# five (the false-alarm rate is measured on them), the extra levels with seeds of their own
 STYLE_SIGMAS = dict(samples=SIGMAS, partial=SIGMAS[2:4], camera=SIGMAS[2:4])
+CONTROL_VARIANTS = ("base", "inclusion")
 POINTS = 120                      # per frame, samples and partial styles
 VIEW = np.array([0.2, 0.6, 1.0])  # the partial view looks from this direction
 CAMERA = dict(eye=[0.525, 1.55, 1.9], target=[0.525, 0.9, 0.0], up=[0.0, 1.0, 0.0],
@@ -107,6 +116,27 @@ CASES = [
     ("drag", "drag", ["gravity", "damping"], "drag"),
     ("clamp", "clamp", ["gravity", "damping"], "clamp"),
 ]
+
+# Controls with the complete model: the variant's effect is in the scene at its true strength and
+# fitted with the material (a user who added the effect the diagnosis named and diagnoses
+# again), so nothing may be called missing. (name, variant, effects, sections, fitted).
+# The initial rotation about the clamp's axis is our rigid motion about the centre of mass
+# c = (0.525, 1, 0): v0 = w x (c - (0, 1, 0)) = (0, 1.5 * 0.525, 0).
+FIT = ["young", "poisson"]
+COMPLETE = [
+    ("complete-damping", "damped", ["gravity", "damping"], [], FIT + ["damping_mass"]),
+    ("complete-drag", "drag", ["gravity", "damping", "drag"], ["[drag]", "coefficient = 0.2"],
+     FIT + ["drag"]),
+    ("complete-clamp", "clamp", ["gravity", "damping", "clamp"], ["[clamp]", "stiffness = 5000.0"],
+     FIT + ["clamp"]),
+    ("complete-initial_velocity", "initial_velocity", ["gravity", "damping", "initial_velocity"],
+     ["[initial]", "velocity = [0.0, 0.7875, 0.0]", "angular_velocity = [0.0, 0.0, 1.5]"],
+     FIT + ["initial_velocity", "initial_angular_velocity"]),
+]
+# generate.py's landing sphere with its ground: a control with contact
+GROUND_CONTROL = dict(case="complete-ground/samples-0.01", scene="../ground/scene.toml",
+                      observations="../ground/observations.csv", hidden=None, style="samples",
+                      sigma=0.01)
 
 
 # ---------------------------------------------------------------------------
@@ -293,13 +323,14 @@ def fmt(v):
     return "[" + ", ".join(repr(float(x)) for x in v) + "]"
 
 
-def scene_toml(name, effects, hidden):
+def scene_toml(name, effects, hidden, variant=None, sections=(), fitted=None):
     b = BAR
     c, s = np.array(b["center"]), np.array(b["size"])
     lo, hi = c - s / 2 - 0.05, c + s / 2 + 0.05
     lo[0], hi[0] = -0.005, 0.005
     lines = [f"# Hidden-effect reference case '{name}' (tools/reference/hidden.py, scikit-fem).",
-             "# " + ("Nothing of the catalogue is hidden (a control)." if hidden is None
+             "# " + (f"The complete model of variant '{variant}': a control." if fitted
+                     else "Nothing of the catalogue is hidden (a control)." if hidden is None
                      else f"The observed bar has the effect '{hidden}'; this scene lacks it."),
              "[body]",
              f'shape = {{ kind = "box", center = {fmt(c)}, size = {fmt(s)} }}',
@@ -307,14 +338,20 @@ def scene_toml(name, effects, hidden):
              "[material]", f"young = {BASE['young']!r}", f"poisson = {BASE['poisson']!r}",
              f"density = {BASE['density']!r}", ""]
     if "damping" in effects:
-        lines += ["[damping]", f"mass = {BASE['damping_mass']!r}",
+        a1 = VARIANTS.get(variant, {}).get("damping_mass", BASE["damping_mass"]) if fitted else \
+            BASE["damping_mass"]
+        lines += ["[damping]", f"mass = {a1!r}",
                   f"stiffness = {BASE['damping_stiffness']!r}", ""]
     if "gravity" in effects:
         lines += ["[gravity]", f"acceleration = {fmt(g.GRAVITY)}", ""]
+    if sections:
+        lines += list(sections) + [""]
     lines += ["# holds the clamped end face", "[[dirichlet]]",
               f"min = {fmt(np.round(lo, 6))}", f"max = {fmt(np.round(hi, 6))}", "",
               "[time]", f"dt = {BASE['dt']!r}", f"steps = {BASE['steps']}", "theta = 0.5", "",
               "[model]", "effects = [" + ", ".join(f'"{e}"' for e in effects) + "]", ""]
+    if fitted:
+        lines += ["[fit]", "parameters = [" + ", ".join(f'"{p}"' for p in fitted) + "]", ""]
     return "\n".join(lines)
 
 
@@ -340,7 +377,10 @@ def run_variant(variant, out, log):
     files = {}
     depth = [depth_image(surf.triangles(frames[f])) for f in range(1, BASE["steps"] + 1)]
     for si, style in enumerate(STYLES):
-        for li, sigma in enumerate(STYLE_SIGMAS[style]):
+        levels = [(li, s) for li, s in enumerate(STYLE_SIGMAS[style])]
+        if variant in CONTROL_VARIANTS:
+            levels += [(10 + k, s) for k, s in enumerate(SIGMAS) if s not in STYLE_SIGMAS[style]]
+        for li, sigma in levels:
             rng = np.random.default_rng([SEED, vi, si, li])
             fr, pts = [], []
             for f in range(1, BASE["steps"] + 1):
@@ -388,10 +428,12 @@ def main():
     for v in [] if args.index_only else args.variant or list(VARIANTS):
         variants[v] = run_variant(v, args.out, log)
     cases = []
-    for name, variant, effects, hidden in CASES:
+    complete = [(name, variant, effects, None, sections, fitted)
+                for name, variant, effects, sections, fitted in COMPLETE]
+    for name, variant, effects, hidden, *more in [c + ((), None) for c in CASES] + complete:
         scene = f"scenes/{name}.toml"
         with open(os.path.join(args.out, scene), "w") as fh:
-            fh.write(scene_toml(name, effects, hidden))
+            fh.write(scene_toml(name, effects, hidden, variant, *more))
         for key, f in sorted(variants.get(variant, {}).get("files", {}).items(),
                              key=lambda kv: (STYLES.index(kv[1]["style"]), kv[1]["sigma"])):
             cases.append(dict(case=f"{name}/{key}", scene=scene, observations=f["csv"],
@@ -404,7 +446,7 @@ def main():
             "# the ground switched off (its [ground] section, our contact law, kept).\n") + text
     with open(os.path.join(args.out, GROUND["scene"]), "w") as fh:
         fh.write(text)
-    cases.append(GROUND)
+    cases += [GROUND, GROUND_CONTROL]
     index = dict(
         generator="tools/reference/hidden.py (scikit-fem; physics notes in its docstring and "
                   "tools/reference/README.md)",

@@ -162,18 +162,7 @@ pub fn refine_check(
     if points.is_empty() {
         return Err(Error::invalid("refine check: the body has no surface"));
     }
-    // memory: the 2r grid has about 8x the nodes
-    let need = 8 * grid.dofs() * BYTES_PER_NODE * 2;
-    if let Some(avail) = available_memory() {
-        if need > avail {
-            return Err(Error::Invalid(format!(
-                "refine check: the grid at resolution {} needs about {} MB, {} MB are available",
-                2.0 * r,
-                need >> 20,
-                avail >> 20
-            )));
-        }
-    }
+    check_memory(grid, r, 2.0 * r)?;
     let base = run(
         grid.clone(),
         model.clone(),
@@ -247,8 +236,27 @@ fn surface_points(grid: &Grid) -> (Vec<[f64; 3]>, Vec<f64>) {
     (mesh.vertices, w)
 }
 
+/// Fails when the grid of resolution `finer` (of `grid`, resolution `r`) would not fit in the
+/// available memory (its node count grows as `(finer / r)^3`).
+pub(crate) fn check_memory(grid: &Grid, r: f64, finer: f64) -> Result<(), Error> {
+    let need = ((finer / r).powi(3) * (grid.dofs() * BYTES_PER_NODE * 2) as f64) as usize;
+    match available_memory() {
+        Some(avail) if need > avail => Err(Error::Invalid(format!(
+            "the grid at resolution {finer} needs about {} MB, {} MB are available",
+            need >> 20,
+            avail >> 20
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// The simulation grid of `scene` at `resolution` and `model` carried over to it.
-fn at_resolution(scene: &Scene, grid: &Grid, model: &Model, resolution: f64) -> Result<(Grid, Model), Error> {
+pub(crate) fn at_resolution(
+    scene: &Scene,
+    grid: &Grid,
+    model: &Model,
+    resolution: f64,
+) -> Result<(Grid, Model), Error> {
     let other = scene.grid_at(Some(resolution))?;
     let mut m = scene.build_model(&other)?;
     carry_model(model, grid, &mut m, &other);
@@ -256,15 +264,23 @@ fn at_resolution(scene: &Scene, grid: &Grid, model: &Model, resolution: f64) -> 
 }
 
 /// Carries `from` (on `grid`) over to `to` (built from the same scene on `other`): every
-/// global value, the external force's coefficients, and the per-cell stiffness factor read
+/// global value, the external force's coefficients, the drag coefficient (on `to`'s own nodal
+/// weights), and the per-cell stiffness factor read
 /// from the cell of `grid` containing each cell centre of `other` (1 outside `grid`'s cells).
 pub fn carry_model(from: &Model, grid: &Grid, to: &mut Model, other: &Grid) {
     let external = to.external_force.take();
+    let drag = to.drag.take();
     *to = Model {
         stiffness_scale: None,
         external_force: None,
+        drag: None,
         ..from.clone()
     };
+    // the drag's nodal surface weights belong to the grid: `to`'s, with `from`'s coefficient
+    if let (Some(mut d), Some(f)) = (drag, &from.drag) {
+        d.coefficient = f.coefficient;
+        to.drag = Some(d);
+    }
     if let (Some(mut e), Some(f)) = (external, &from.external_force) {
         if e.coefficients.len() == f.coefficients.len() {
             e.coefficients.clone_from(&f.coefficients);

@@ -147,6 +147,32 @@ fn stiffness_field_carries_to_a_finer_grid() {
     }
 }
 
+/// The drag's nodal weights belong to each grid: the check of a model with drag runs (it
+/// failed with the coarse grid's weights on the fine one) and the coefficient carries over.
+#[test]
+fn drag_carries_to_a_finer_grid() {
+    let s = scene(&format!(
+        "{}[drag]\ncoefficient = 0.5\n",
+        CANTILEVER.replace("effects = [\"gravity\"]", "effects = [\"gravity\", \"drag\"]")
+    ));
+    let sim = s.build_simulation().unwrap();
+    let mut model = sim.model.clone();
+    model.drag.as_mut().expect("drag on").coefficient = 0.75;
+    let fine = Grid::new(s.body_sdf_at(Some(24.0)).unwrap()).unwrap();
+    let mut to = s.build_model(&fine).unwrap();
+    carry_model(&model, &sim.grid, &mut to, &fine);
+    let d = to.drag.as_ref().expect("drag carried");
+    assert_eq!(d.coefficient, 0.75);
+    assert_eq!(d.weights.len(), fine.dofs());
+    assert_ne!(fine.dofs(), sim.grid.dofs());
+    let check = refine_check(&s, &sim.grid, &model, &RefineParams::default(), &mut |_, _, _| {});
+    let check = check.unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        check.difference.is_finite() && check.difference > 0.0,
+        "{check:?}"
+    );
+}
+
 /// An SDF file's body resampled at twice its resolution is the same body: equal volume to
 /// the cut-cell accuracy, half the spacing.
 #[test]

@@ -48,6 +48,9 @@ pub struct Row {
     pub floor_ratio: Option<f64>,
     /// discretisation share of the rms (estimate / floor)
     pub discretisation: Option<f64>,
+    /// the effect called missing at `r` was withdrawn: its improvement did not persist at `2r`
+    #[serde(default)]
+    pub withdrew: Option<bool>,
     /// parameters of the fit as given left on a bound
     pub on_bounds: String,
     /// wall seconds
@@ -127,6 +130,7 @@ fn run_case(bin: &Path, dir: &Path, case: &Value) -> Result<Row, String> {
         rms_after_ratio: after.map(|r| r / sigma),
         floor_ratio: v["noise_floor"].as_f64().map(|f| f / sigma),
         discretisation: v["discretisation"]["share"].as_f64(),
+        withdrew: v["discretisation"]["withdrew"].as_bool(),
         on_bounds: on_bounds.join(", "),
         seconds,
         error: None,
@@ -178,6 +182,7 @@ pub fn table(quick: bool) -> Vec<Row> {
                     rms_after_ratio: None,
                     floor_ratio: None,
                     discretisation: None,
+                    withdrew: None,
                     on_bounds: String::new(),
                     seconds: f64::NAN,
                     error: Some(e),
@@ -281,7 +286,9 @@ pub fn markdown(rows: &[Value]) -> String {
         "`tests/reference_values/independent/hidden` (tools/reference/hidden.py, scikit-fem); \
          `softbody diagnose` with default settings. margin = rms of the model as given / true noise \
          sigma; after = rms after the missing (else first) effect's refit / sigma; floor = stated \
-         noise floor / sigma; disc. = discretisation share of the rms (estimate / floor).",
+         noise floor / sigma; disc. = discretisation share of the rms (estimate / floor); \
+         withdrawn = the effect called missing at the scene's resolution did not keep its \
+         improvement at twice the resolution.",
         rows,
         &[
             col("case", "case", Fmt::Plain),
@@ -294,6 +301,7 @@ pub fn markdown(rows: &[Value]) -> String {
             col("after", "rms_after_ratio", Fmt::Ratio),
             col("floor", "floor_ratio", Fmt::Ratio),
             col("disc.", "discretisation", Fmt::Ratio),
+            col("withdrawn", "withdrew", Fmt::Plain),
             col("on a bound", "on_bounds", Fmt::Plain),
             col("s", "seconds", Fmt::Ratio),
             col("error", "error", Fmt::Plain),
@@ -318,8 +326,9 @@ pub fn markdown(rows: &[Value]) -> String {
          its cases with the hidden effect called missing; or tied = also counting the cases where the \
          verdict names it as an alternative the data cannot tell from the one called missing (Delta \
          BIC within 10); false alarm = share of the controls \
-         (nothing hidden: the bar as it is, and with a stiff inclusion too small to see) with an \
-         effect called missing.",
+         (nothing hidden: the bar as it is, with a stiff inclusion too small to see, the complete \
+         models of four variants, the landing sphere with its ground) with an effect called \
+         missing.",
         &curve_rows,
         &[
             col("effect", "effect", Fmt::Plain),
@@ -331,7 +340,45 @@ pub fn markdown(rows: &[Value]) -> String {
             col("controls", "controls", Fmt::Plain),
         ],
     ));
+    let ran: Vec<&Value> = rows.iter().filter(|r| r["right"].is_boolean()).collect();
+    let controls = ran.iter().filter(|r| r["hidden"].is_null()).count();
+    let alarms = ran
+        .iter()
+        .filter(|r| r["hidden"].is_null() && r["missing"].is_string())
+        .count();
+    s.push_str(&format!(
+        "\nFalse alarms over every control: {alarms} of {controls} (95% upper bound on the rate, \
+         Clopper-Pearson: {:.1}%).\n",
+        100.0 * upper_bound(alarms, controls, 0.05)
+    ));
     s
+}
+
+/// The one-sided exact (Clopper-Pearson) upper confidence bound, level `1 - alpha`, on a rate
+/// of which `k` events in `n` trials were seen: the `p` with `P(X <= k | n, p) = alpha`.
+pub fn upper_bound(k: usize, n: usize, alpha: f64) -> f64 {
+    if n == 0 || k >= n {
+        return 1.0;
+    }
+    // P(X <= k) falls with p: bisect on it
+    let cdf = |p: f64| {
+        let (mut term, mut sum) = ((1.0 - p).powi(n as i32), 0.0);
+        for i in 0..=k {
+            sum += term;
+            term *= (n - i) as f64 / (i + 1) as f64 * p / (1.0 - p);
+        }
+        sum
+    };
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if cdf(mid) > alpha {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// An SVG picture of the detection curves: detection rate per effect and the false-alarm rate
@@ -442,6 +489,19 @@ pub fn svg(rows: &[Value]) -> String {
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn the_upper_bound_is_clopper_pearsons() {
+        // no event in n: 1 - alpha^(1/n) (59 controls bound the rate by 5%)
+        for n in [1, 18, 59, 100] {
+            let want = 1.0 - 0.05f64.powf(1.0 / n as f64);
+            assert!((super::upper_bound(0, n, 0.05) - want).abs() < 1e-12, "{n}");
+        }
+        assert!(super::upper_bound(0, 59, 0.05) < 0.05 && super::upper_bound(0, 58, 0.05) > 0.05);
+        // one event in 10: P(X <= 1 | 10, p) = 0.05 at p = 0.39416 (tables of the binomial)
+        assert!((super::upper_bound(1, 10, 0.05) - 0.39416).abs() < 1e-4);
+        assert_eq!(super::upper_bound(3, 3, 0.05), 1.0);
+    }
 
     #[test]
     fn curves_count_detections_and_false_alarms_per_level() {

@@ -99,44 +99,54 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     bar.finish_and_clear();
 
     let sim = job.scene.build_simulation().map_err(|e| e.to_string())?;
-    let mut discretisation = if job.refine_check {
+    let mut discretisation = None;
+    if job.refine_check {
+        // the model's own error: the discretisation share of the rms (`adjoint::refine`)
         let params = adjoint::refine::RefineParams {
             frames: Some(job.observations.frame_numbers()),
             ..Default::default()
         };
         stages.push(("discretisation check".into(), Instant::now()));
-        Some(crate::refine_check::run(
+        let mut v = crate::refine_check::run(
             job.scene,
             &sim.grid,
             &d.model,
             &params,
             Some(d.noise_floor),
             job.quiet,
-        ))
-    } else {
-        None
-    };
-    // an effect whose improvement is within the model's own discretisation error is not
-    // called missing (docs/effects.md, "Discretisation is not missing physics"); the error is
-    // that of the model that explains the data, the named effect's refit (the model as given
-    // moves otherwise: undamped, its phase errors grow over a long run)
-    let named = d
-        .missing_effect
-        .as_ref()
-        .and_then(|name| d.candidates.iter().find(|c| &c.effect == name))
-        .and_then(|c| Some((c.scene.clone()?, c.model.clone()?)));
-    if let (Some(v), Some((scene, model))) = (discretisation.as_mut(), named) {
-        let params = adjoint::refine::RefineParams {
-            frames: Some(job.observations.frame_numbers()),
-            ..Default::default()
-        };
-        let check =
-            crate::refine_check::run(&scene, &sim.grid, &model, &params, Some(d.noise_floor), job.quiet);
-        if let Some(estimate) = check["estimate"].as_f64() {
-            let withdrew = adjoint::diagnosis::weigh_discretisation(&mut d, estimate);
-            v["withdrew"] = serde_json::Value::from(withdrew);
+        );
+        // discretisation is not missing physics: the named effect's improvement must persist
+        // on the grid of twice the resolution (`adjoint::diagnosis::discretisation`)
+        if d.missing_effect.is_some() {
+            stages.push(("persistence at 2r".into(), Instant::now()));
+            let setup = Setup { reach: None, ..setup };
+            let fine = 2.0 * d.fitted_scene.resolution().map_err(|e| e.to_string())?;
+            match adjoint::diagnosis::persistence(&setup, &d, &sim.grid, fine, &job.settings) {
+                Ok(Some(p)) => {
+                    let withdrew = adjoint::diagnosis::weigh_discretisation(&mut d, &p);
+                    crate::note!(
+                        "at resolution {fine}: {} rms {:.4e} -> {:.4e} (Delta BIC {:.1}){}",
+                        p.effect,
+                        p.rms,
+                        p.rms_after,
+                        p.delta_bic,
+                        if withdrew {
+                            ": withdrawn, the improvement does not persist"
+                        } else {
+                            ""
+                        }
+                    );
+                    v["persistence"] = p.to_json();
+                    v["withdrew"] = serde_json::Value::from(withdrew);
+                }
+                Ok(None) => {}
+                Err(e) => {
+                    crate::note!("persistence check skipped: {e}");
+                    v["persistence"] = json!({ "error": e.to_string() });
+                }
+            }
         }
-        v["with_missing_effect"] = check;
+        discretisation = Some(v);
     }
     stages.push(("report".into(), Instant::now()));
     let hist_path = history::history_path(job.scene_path);

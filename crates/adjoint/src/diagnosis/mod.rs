@@ -19,12 +19,20 @@
 //!    the noise floor; the estimated floor is not needed to call an effect missing (it can be
 //!    a few percent high: a hidden stiff inclusion left the rms at 1.01x the estimate while
 //!    the field took 5% of it, Delta BIC -480). Otherwise: nothing missing.
+//!
+//! After the verdict, a caller that can afford a run at twice the resolution checks that the
+//! named effect is not the model's own discretisation error ([`discretisation`]: its
+//! improvement must persist on the finer grid; `softbody diagnose` does).
 
+pub mod discretisation;
 pub mod effects;
 pub mod floor;
 pub mod history;
 pub mod residuals;
 pub mod score;
+mod search;
+
+pub use discretisation::{persistence, weigh_discretisation, Persistence};
 
 use crate::cost::Robust;
 use crate::cost_mesh::SurfaceCost;
@@ -34,9 +42,10 @@ use crate::params::ParamSet;
 use crate::Error;
 use cutfem::fem::Model;
 use cutfem::scene::Scene;
-use effects::{catalogue, write_back_all, DataContext, Effect, Probe};
+use effects::{catalogue, write_back_all, DataContext, Effect};
 use residuals::{Direction, PointResidual, Region};
 use score::{BaseFit, Candidate};
+use search::{refit_floor, Search};
 
 /// What a diagnosis works on.
 #[derive(Clone, Copy, Debug)]
@@ -357,67 +366,6 @@ pub fn diagnose(
     })
 }
 
-/// Discretisation is not missing physics: when the misfit the missing effect removes,
-/// `sqrt(rms^2 - rms_after^2)`, is no larger than `estimate`, the model's own discretisation
-/// error (`adjoint::refine`, the fitted model at `r` against `2r`), the effect is withdrawn
-/// (`missing_effect` and `alternatives` cleared, the verdict says why). Returns whether it was.
-pub fn weigh_discretisation(d: &mut Diagnosis, estimate: f64) -> bool {
-    let Some(name) = d.missing_effect.clone() else {
-        return false;
-    };
-    let Some(after) = d
-        .candidates
-        .iter()
-        .find(|c| c.effect == name)
-        .and_then(|c| c.rms_after)
-    else {
-        return false;
-    };
-    let Some(removed) = within_discretisation(d.rms, after, estimate) else {
-        return false;
-    };
-    d.missing_effect = None;
-    d.alternatives.clear();
-    d.verdict = format!(
-        "nothing called missing: {name} would remove a misfit of rms {removed:.4e} (rms {:.4e} -> \
-         {after:.4e}), no more than the model's own discretisation error {estimate:.4e}; refine the \
-         grid ([body] resolution) and diagnose again",
-        d.rms
-    );
-    true
-}
-
-/// The misfit `sqrt(rms^2 - after^2)` an effect removes (rms `rms` -> `after`), when it is no
-/// larger than the discretisation error `estimate` (else, or when not a number, `None`).
-fn within_discretisation(rms: f64, after: f64, estimate: f64) -> Option<f64> {
-    let removed = (rms * rms - after * after).max(0.0).sqrt();
-    (removed <= estimate).then_some(removed)
-}
-
-/// The residual noise floor ([`floor::residual_floor`]) at the refit of the candidate with the
-/// smallest rms after its refit, if one was refitted.
-fn refit_floor(
-    candidates: &[Candidate],
-    steps: usize,
-    cost: &SurfaceCost,
-    observations: &Observations,
-) -> Result<Option<floor::FloorEstimate>, Error> {
-    let best = candidates
-        .iter()
-        .filter(|c| c.rms_after.is_some() && c.model.is_some() && c.scene.is_some())
-        .min_by(|a, b| {
-            a.rms_after
-                .unwrap_or(f64::INFINITY)
-                .total_cmp(&b.rms_after.unwrap_or(f64::INFINITY))
-        });
-    let Some((Some(scene), Some(model))) = best.map(|c| (&c.scene, &c.model)) else {
-        return Ok(None);
-    };
-    let mut sim = scene.build_simulation()?;
-    let records = residuals::point_residuals(&mut sim, model.clone(), steps, cost, observations)?;
-    Ok(floor::residual_floor(&records))
-}
-
 /// The rms and point count of each observed frame: `(frame, rms, points)` in frame order.
 fn residuals_per_frame(records: &[PointResidual]) -> Vec<(usize, f64, usize)> {
     let mut frames: Vec<usize> = records.iter().map(|r| r.frame).collect();
@@ -442,99 +390,6 @@ fn residuals_per_camera(records: &[PointResidual]) -> Vec<(u32, f64, usize)> {
             (c, r, n)
         })
         .collect()
-}
-
-/// A candidate whose prediction is reliable (see [`Search::candidates`]) and whose
-/// predicted rms is more than this factor above a confirmed candidate's rms is not refitted.
-const CLOSE_FACTOR: f64 = 1.2;
-
-/// The search for the missing effect among those switched off.
-struct Search<'a> {
-    setup: &'a Setup<'a>,
-    base: &'a BaseFit,
-    off: &'a [Box<dyn Effect>],
-    settings: &'a DiagnoseParams,
-    /// the residual count (the BIC penalty per parameter is its log)
-    points: usize,
-}
-
-impl Search<'_> {
-    /// Probes every effect that is off (a score each), refits the best whose score beats the
-    /// BIC penalty, and returns the candidates: the refitted ones by Delta BIC, then the rest
-    /// by score.
-    fn candidates(&self, data: &DataContext<'_>, progress: Progress, total: usize) -> Vec<Candidate> {
-        let (setup, base, off, settings) = (self.setup, self.base, self.off, self.settings);
-        let mut candidates: Vec<Candidate> = Vec::new();
-        for (i, e) in off.iter().enumerate() {
-            progress(&format!("score {}", e.name()), 2 + i, total);
-            candidates.push(score::probe(setup, base, e.as_ref(), data));
-        }
-        let n = self.points.max(1) as f64;
-        let rank = |c: &Candidate| c.score - c.params.len() as f64 * n.ln();
-        candidates.sort_by(|a, b| rank(b).total_cmp(&rank(a)).then(a.effect.cmp(&b.effect)));
-        // refit the candidates whose score beats the BIC penalty, best first
-        for i in 0..settings.refits.min(candidates.len()) {
-            if candidates[i].error.is_some() || rank(&candidates[i]) <= 0.0 {
-                continue;
-            }
-            // a candidate predicted far worse than one already confirmed cannot win, unless it
-            // has fewer parameters (at equal rms its Delta BIC is lower). "Far": 2x, or
-            // [`CLOSE_FACTOR`] when the prediction is reliable, a score probe of parameters that
-            // are not log coordinates (the cost is near quadratic in them: initial velocities,
-            // the stiffness field's log factors about 0); a log coordinate probed near 0 (drag,
-            // damping, friction) or a data-driven start moves far, and its prediction is a poor
-            // bound: it is compared with the confirmed candidate's own prediction too (the larger
-            // of its prediction and its refit), for two probes alike predict alike. On the 80-step
-            // bar the two hopeless refits skipped so were 200 of 268 s; on the independent bar
-            // with hidden mass damping (noise 0.0025) drag, refitted first to 0.0032 from a
-            // prediction as poor as damping's, otherwise kept damping from its refit.
-            let best = candidates[..i]
-                .iter()
-                .filter(|c| c.rms_after.is_some())
-                .min_by(|a, b| {
-                    a.rms_after
-                        .unwrap_or(f64::INFINITY)
-                        .total_cmp(&b.rms_after.unwrap_or(f64::INFINITY))
-                });
-            let effect = off
-                .iter()
-                .find(|e| e.name() == candidates[i].effect)
-                .expect("listed");
-            let reliable = effect.probe() == Probe::Score && effect.params().iter().all(|p| !p.is_log());
-            if let Some(b) = best {
-                let confirmed = b.rms_after.unwrap_or(f64::INFINITY);
-                let (far, reference) = if reliable {
-                    (CLOSE_FACTOR, confirmed)
-                } else {
-                    (2.0, confirmed.max(b.predicted_rms))
-                };
-                let worse = candidates[i].predicted_rms > far * reference;
-                if worse && candidates[i].params.len() >= b.params.len() {
-                    continue;
-                }
-            }
-            progress(
-                &format!("refit with {}", candidates[i].effect),
-                2 + off.len() + i,
-                total,
-            );
-            score::refit(
-                setup,
-                base,
-                effect.as_ref(),
-                &mut candidates[i],
-                settings.refit_iterations,
-            );
-        }
-        // refitted candidates by Delta BIC, then the rest by score
-        candidates.sort_by(|a, b| match (a.delta_bic, b.delta_bic) {
-            (Some(x), Some(y)) => x.total_cmp(&y),
-            (Some(_), None) => std::cmp::Ordering::Less,
-            (None, Some(_)) => std::cmp::Ordering::Greater,
-            (None, None) => rank(b).total_cmp(&rank(a)),
-        });
-        candidates
-    }
 }
 
 /// The coordinates of `x` on a bound of the fit's box `bounds` (within 1e-6, relative), with
@@ -605,19 +460,6 @@ fn verdict(
 
 #[cfg(test)]
 mod tests {
-    /// An effect is withdrawn when the misfit it removes is within the discretisation error.
-    #[test]
-    fn an_improvement_within_the_discretisation_error_is_withdrawn() {
-        // rms 0.0125 -> 0.0100 removes a misfit of rms 0.0075
-        use super::within_discretisation;
-        let removed = within_discretisation(0.0125, 0.0100, 0.008).unwrap();
-        assert!((removed - 0.0075).abs() < 1e-15);
-        assert_eq!(within_discretisation(0.0125, 0.0100, 0.007), None);
-        // a refit that made it worse removes nothing
-        assert_eq!(within_discretisation(0.01, 0.011, 0.0), Some(0.0));
-        assert_eq!(within_discretisation(0.02, 0.01, f64::NAN), None);
-    }
-
     /// Only the coordinates on (or numerically at) a bound are named, with their side.
     #[test]
     fn on_bounds_names_the_coordinates_on_a_bound() {
