@@ -13,8 +13,9 @@
 //!   threshold): on this slender bar Rayleigh mass damping and surface drag slow every section
 //!   alike (its surface per volume is the same along the bar), their refits reach the same rms
 //!   (measured: 0.010141 and 0.010148 at noise 0.01) and the BIC prefers drag's one parameter;
-//! - a control (nothing hidden: the bar as it is, or with a stiff inclusion too small to see)
-//!   has nothing called missing;
+//! - a control (nothing hidden: the bar as it is, with a stiff inclusion too small to see, or
+//!   with an effect at its true strength that the scene already has and fits) has nothing
+//!   called missing;
 //! - the stated noise floor is within 20% of sigma.
 
 mod common;
@@ -119,4 +120,24 @@ fn hidden_initial_velocity() {
 #[test]
 fn hidden_drag() {
     check("drag/samples-0.01");
+}
+
+#[test]
+fn control_with_damping_in_the_scene_has_nothing_missing() {
+    check("complete-damping/samples-0.01");
+}
+
+#[test]
+fn control_with_drag_in_the_scene_has_nothing_missing() {
+    check("complete-drag/samples-0.01");
+}
+
+#[test]
+fn control_with_the_clamp_in_the_scene_has_nothing_missing() {
+    check("complete-clamp/samples-0.01");
+}
+
+#[test]
+fn control_with_the_initial_velocity_in_the_scene_has_nothing_missing() {
+    check("complete-initial_velocity/samples-0.01");
 }
