@@ -25,15 +25,21 @@ fn check_scene(s: &Scene) -> adjoint::refine::RefineCheck {
     .unwrap()
 }
 
-/// A free body in free fall moves rigidly, `u = g t^2 / 2` per Newmark step, on every grid:
-/// the check finds no difference.
+/// A free body falling from rest under gravity `g` (`theta` given in `[time]`).
+fn free_fall(theta: &str) -> Scene {
+    scene(&format!(
+        "[body]\nshape = {{ kind = \"sphere\", center = [0.0, 1.0, 0.0], radius = 0.3 }}\nresolution = 8\n\
+         [material]\nyoung = 1000.0\npoisson = 0.3\n[gravity]\nacceleration = [0.0, -10.0, 0.0]\n\
+         [time]\ndt = 0.02\nsteps = 5\n{theta}\n[model]\neffects = [\"gravity\"]\n"
+    ))
+}
+
+/// A free body in free fall moves rigidly on every grid, and the trapezoidal rule (`theta` =
+/// 1/2) integrates a constant acceleration exactly, `u = g t^2 / 2`, at every step: the check
+/// (which refines the step with the grid) finds no difference.
 #[test]
 fn free_fall_is_resolution_independent() {
-    let s = scene(
-        "[body]\nshape = { kind = \"sphere\", center = [0.0, 1.0, 0.0], radius = 0.3 }\nresolution = 8\n\
-         [material]\nyoung = 1000.0\npoisson = 0.3\n[gravity]\nacceleration = [0.0, -10.0, 0.0]\n\
-         [time]\ndt = 0.02\nsteps = 5\n[model]\neffects = [\"gravity\"]\n",
-    );
+    let s = free_fall("theta = 0.5");
     let check = check_scene(&s);
     eprintln!("{}", check.summary(None));
     assert_eq!(check.per_frame.len(), 5);
@@ -41,6 +47,24 @@ fn free_fall_is_resolution_independent() {
     assert!(check.max_difference < 1e-8, "{check:?}");
     assert_eq!(check.order, None, "no order from zero differences");
     assert_eq!(check.resolution_for(1e-3), None);
+}
+
+/// The check refines the time step with the grid. For a free fall the theta scheme keeps the
+/// velocity exact and advances `u' = u + dt v + theta g dt^2`, so after time `t` its error is
+/// `(theta - 1/2) g dt t`, grid-independent: with `dt` halved at `2r` the check's difference at
+/// frame `f` is `(theta - 1/2) g t_f dt / 2` exactly (`theta` = 0.6, `g` = 10, `dt` = 0.02:
+/// `2e-4 f`), and an estimate that saw only the grid would be zero.
+#[test]
+fn free_fall_sees_the_time_steps_error() {
+    let s = free_fall("theta = 0.6");
+    let check = check_scene(&s);
+    eprintln!("{}", check.summary(None));
+    assert_eq!(check.substeps, 1);
+    for &(f, d) in &check.per_frame {
+        let t = 0.02 * f as f64;
+        let expected = (0.6 - 0.5) * 10.0 * t * 0.02 / 2.0;
+        assert!((d - expected).abs() < 1e-9, "frame {f}: {d} vs {expected}");
+    }
 }
 
 const CANTILEVER: &str = "[body]\nshape = { kind = \"box\", center = [0.5, 0.0, 0.0], size = [1.0, 0.25, 0.25] }\n\

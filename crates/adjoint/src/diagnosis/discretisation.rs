@@ -7,7 +7,9 @@
 //! and not the physics, so its improvement does not survive a change of grid. The check
 //! ([`persistence`]) simulates both fits of the diagnosis, the model as given (`rms` at `r`)
 //! and the named effect's refit (`rms_after` at `r`), with the parameters fitted at `r`, on the
-//! grid of resolution `r' = 2r` (`crate::refine::carry_model` moves the grid-dependent parts),
+//! grid of resolution `r' = 2r` with the time step refined alike (`crate::refine::carry_model`
+//! moves the grid-dependent parts, `crate::refine::substeps_at` the step: a phase lag of the
+//! time integrator is the model's own error as much as the grid's),
 //! and weighs the two against the same observations with the verdict's own evidence rule
 //! (module docs of [`super`]): with `n` residuals and `p` effect parameters,
 //!
