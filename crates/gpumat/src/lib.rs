@@ -30,6 +30,10 @@
 //! assert_eq!(y.get(1, 0, 0), Vec3::splat(2.0));
 //! ```
 
+// The op table (visitor macros); first, so that every module below can expand it.
+#[macro_use]
+mod op_table;
+
 pub mod backend;
 mod block;
 pub mod cuda_codegen;
