@@ -15,7 +15,6 @@
 
 use crate::expr::Expr;
 use crate::matrix::Shape;
-use crate::ops::fill_cuda;
 use crate::scalar::Scalar;
 
 /// Collects the parameters and text of one generated kernel.
@@ -91,25 +90,15 @@ impl CudaGen {
     }
 }
 
-/// The text of a lane-wise unary op-table entry applied to the element text `a` of type `T`:
-/// the table's text itself for reals, `gpumat_map` with the text as lambda body for blocks.
+/// The text of a lane-wise unary op-table entry applied to the element text `a` of type `T`
+/// (see [`crate::cuda_text`]).
 pub fn unary_text<T: Scalar>(template: &str, a: &str) -> String {
-    if T::LANES == 1 {
-        fill_cuda(template, &[a])
-    } else {
-        let body = fill_cuda(template, &["gm_x"]);
-        format!("gpumat_map([](auto gm_x) {{ return {body}; }}, {a})")
-    }
+    crate::cuda_text::unary_text(T::LANES, template, a)
 }
 
-/// The text of a lane-wise binary op-table entry (see [`unary_text`]; blocks use `gpumat_zip`).
+/// The text of a lane-wise binary op-table entry (see [`unary_text`]).
 pub fn binary_text<T: Scalar>(template: &str, a: &str, b: &str) -> String {
-    if T::LANES == 1 {
-        fill_cuda(template, &[a, b])
-    } else {
-        let body = fill_cuda(template, &["gm_x", "gm_y"]);
-        format!("gpumat_zip([](auto gm_x, auto gm_y) {{ return {body}; }}, {a}, {b})")
-    }
+    crate::cuda_text::binary_text(T::LANES, template, a, b)
 }
 
 /// The complete CUDA source of the kernel assigning `e` to a destination of element type `T`.

@@ -37,6 +37,7 @@ mod op_table;
 pub mod backend;
 mod block;
 pub mod cuda_codegen;
+pub mod cuda_text;
 mod error;
 pub mod expr;
 mod matrix;

@@ -71,11 +71,4 @@ macro_rules! binary_ops {
 for_each_unary_op!(unary_ops);
 for_each_binary_op!(binary_ops);
 
-/// Fills a CUDA template with operand texts.
-pub fn fill_cuda(template: &str, operands: &[&str]) -> String {
-    let mut out = template.to_string();
-    for (i, op) in operands.iter().enumerate() {
-        out = out.replace(&format!("{{{i}}}"), op);
-    }
-    out
-}
+pub use crate::cuda_text::fill_cuda;
