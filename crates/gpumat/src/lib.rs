@@ -36,6 +36,7 @@ mod op_table;
 
 pub mod backend;
 mod block;
+pub mod cuda;
 pub mod cuda_codegen;
 pub mod cuda_text;
 mod error;
