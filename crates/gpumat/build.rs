@@ -67,6 +67,9 @@ const TYPES: [Ty; 2] = [
     },
 ];
 
+/// Generates one source of a real type.
+type Stage = fn(&Ty) -> Source;
+
 #[derive(Default)]
 struct Source {
     text: String,
@@ -328,7 +331,7 @@ fn main() {
          pub const CATALOGUE: &[(&str, &str, &[&str])] = &[\n",
     );
     for ty in &TYPES {
-        let stages: [(&str, fn(&Ty) -> Source); 4] = [
+        let stages: [(&str, Stage); 4] = [
             ("reduce", reduce),
             ("cg", cg),
             ("spmv", spmv),

@@ -240,7 +240,7 @@ fn sparse_products<M: ScalarMul<V, Output = V>, V: Scalar>(c: &mut Corpus) {
     );
 }
 
-fn one_real<R: Real>(c: &mut Corpus)
+fn one_real<R>(c: &mut Corpus)
 where
     Vec3<R>: Scalar<Real = R> + ScalarMul<Output = Vec3<R>> + CastFrom<R>,
     Mat3<R>: Scalar<Real = R>
@@ -248,7 +248,7 @@ where
         + ScalarMul<Output = Mat3<R>>
         + CastFrom<R>
         + CastFrom<Vec3<R>>,
-    R: ScalarMul<Output = R> + ScalarMul<Vec3<R>> + ScalarMul<Mat3<R>> + CastFrom<R>,
+    R: Real + ScalarMul<Output = R> + ScalarMul<Vec3<R>> + ScalarMul<Mat3<R>> + CastFrom<R>,
 {
     all_unary::<R>(c);
     all_unary::<Vec3<R>>(c);
