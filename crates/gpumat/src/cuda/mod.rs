@@ -24,6 +24,7 @@
 //! `kernels/solver.cuh` and `build.rs` for that step).
 
 mod corpus;
+pub mod launch;
 #[cfg(feature = "cuda")]
 pub mod nvrtc;
 
