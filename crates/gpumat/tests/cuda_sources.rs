@@ -157,7 +157,10 @@ fn catalogue_has_the_solver_kernels() {
     // the reductions' tree assumes the launch geometry's block size
     let gpumat_cuh = cuda::headers()[0].1;
     let block = format!("#define GPUMAT_BLOCK {}", gpumat::cuda::launch::BLOCK);
-    assert!(gpumat_cuh.contains(&block), "GPUMAT_BLOCK differs from launch::BLOCK");
+    assert!(
+        gpumat_cuh.contains(&block),
+        "GPUMAT_BLOCK differs from launch::BLOCK"
+    );
 }
 
 /// A call of a CUDA atomic (`atomicAdd`, `atomicCAS`, ...); comments may say "atomics".
