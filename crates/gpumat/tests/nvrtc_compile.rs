@@ -155,3 +155,36 @@ fn a_broken_source_is_one_clear_error() {
         "{msg}"
     );
 }
+
+#[test]
+fn kernels_are_compiled_once_and_cached_by_content() {
+    if nvrtc_or_skip().is_none() {
+        return;
+    }
+    use gpumat::cuda::cache::KernelCache;
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("kcache-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let src = &cuda::corpus()[0];
+    let cache = KernelCache::new(Some(dir.clone()));
+    let a = cache.get_or_compile(src, Target::Cubin(90)).unwrap();
+    let b = cache.get_or_compile(src, Target::Cubin(90)).unwrap();
+    assert!(
+        std::sync::Arc::ptr_eq(&a, &b),
+        "the second request comes from memory"
+    );
+    assert_eq!(cache.compiles(), 1);
+    cache.get_or_compile(src, Target::Ptx(80)).unwrap();
+    assert_eq!(cache.compiles(), 2, "the target is part of the key");
+    // a new cache on the same folder reads the images from disk
+    let again = KernelCache::new(Some(dir.clone()));
+    let c = again.get_or_compile(src, Target::Cubin(90)).unwrap();
+    assert_eq!((again.compiles(), again.disk_hits()), (0, 1));
+    assert_eq!(c.image, a.image);
+    // a different source has a different key
+    let other = &cuda::corpus()[1];
+    assert_ne!(
+        KernelCache::key(src, Target::Cubin(90)),
+        KernelCache::key(other, Target::Cubin(90))
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

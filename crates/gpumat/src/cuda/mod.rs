@@ -19,13 +19,17 @@
 //!   products (see [`corpus`]'s module docs).
 //!
 //! The generated sources are JIT sources: lambdas inside kernels are device code, so NVRTC
-//! needs [`NVRTC_OPTIONS`] (`-default-device`). [`launch`] gives each kind of kernel its grid.
+//! needs [`NVRTC_OPTIONS`] (`-default-device`). [`launch`] gives each kind of kernel its grid;
+//! [`cache`] (feature `cuda`) compiles a kernel at first use and keeps it by content hash, in
+//! memory and on disk.
 //! Checked: every source compiles with NVRTC (`tests/nvrtc_compile.rs`), and runs correctly on
 //! a host emulation of CUDA against the CPU backend (`tests/emulated.rs`,
 //! `tests/emulated_expr.rs`). Not built yet: device memory, launches through the driver, the
 //! device CG loop and the cutfem backend (the parameters of each catalogue kernel are in
 //! `build.rs`, their layouts in `kernels/solver.cuh`).
 
+#[cfg(feature = "cuda")]
+pub mod cache;
 mod corpus;
 pub mod launch;
 #[cfg(feature = "cuda")]
