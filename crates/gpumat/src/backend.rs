@@ -1,7 +1,13 @@
-//! Backends. The CPU backend is the default and the only one built today; the CUDA backend
-//! arrives with its own issue. Until then [`Cuda::new`] is a stub returning a typed error, so
-//! code written against the backend choice already compiles and reports clearly
-//! (architecture principle 2; candle's `dummy_cuda_backend`).
+//! Backends. The CPU backend is the default and the one that runs everything today.
+//!
+//! With feature `cuda`, [`Cuda::new`] checks that the CUDA driver library (`libcuda`) and
+//! NVRTC (`libnvrtc`) can be loaded before touching cudarc (which panics on a missing library),
+//! then opens a context on the device: on a machine without CUDA it returns
+//! [`Error::CudaUnavailable`] with one line. What the CUDA backend can do so far is compile
+//! gpumat's kernels ([`crate::cuda`]); device buffers, launches and the device CG are not built
+//! yet. Without the feature [`Cuda::new`] is a stub returning the same typed error, so code
+//! written against the backend choice compiles and reports clearly (architecture principle 2;
+//! candle's `dummy_cuda_backend`).
 
 use crate::error::Error;
 
@@ -26,26 +32,68 @@ impl Backend for Cpu {
     }
 }
 
-/// The CUDA backend (not built yet: see the module docs).
+/// The CUDA backend: a context on one device (see the module docs for what it can do).
 #[derive(Debug)]
 pub struct Cuda {
+    #[cfg(feature = "cuda")]
+    ctx: std::sync::Arc<cudarc::driver::CudaContext>,
+    #[cfg(not(feature = "cuda"))]
     _private: (),
 }
 
 impl Cuda {
-    /// Opens CUDA device `ordinal`. Always an error in this build.
+    /// Opens CUDA device `ordinal`; [`Error::CudaUnavailable`] when the driver, NVRTC or the
+    /// device is missing.
+    #[cfg(feature = "cuda")]
+    pub fn new(ordinal: usize) -> Result<Self, Error> {
+        // SAFETY: only tries to open libcuda by its usual names (no CUDA call is made).
+        if !unsafe { cudarc::driver::sys::is_culib_present() } {
+            return Err(Error::CudaUnavailable(
+                "the CUDA driver library (libcuda.so) is not installed on this machine".into(),
+            ));
+        }
+        crate::cuda::nvrtc::load(
+            std::env::var_os("GPUMAT_NVRTC_DIR")
+                .as_deref()
+                .map(std::path::Path::new),
+        )?;
+        let ctx = cudarc::driver::CudaContext::new(ordinal)
+            .map_err(|e| Error::CudaUnavailable(format!("device {ordinal}: {e:?}")))?;
+        Ok(Self { ctx })
+    }
+    /// Opens CUDA device `ordinal`: always an error in a build without feature `cuda`.
+    #[cfg(not(feature = "cuda"))]
     pub fn new(ordinal: usize) -> Result<Self, Error> {
         Err(Error::CudaUnavailable(format!(
-            "device {ordinal} requested, but this build of gpumat has no CUDA backend"
+            "device {ordinal} requested, but gpumat was built without feature `cuda`"
         )))
     }
 }
 
 impl Backend for Cuda {
     fn name(&self) -> String {
-        "cuda".into()
+        #[cfg(feature = "cuda")]
+        {
+            let name = self.ctx.name().unwrap_or_else(|_| "unknown device".into());
+            format!("cuda ({name}, device {})", self.ctx.ordinal())
+        }
+        #[cfg(not(feature = "cuda"))]
+        {
+            "cuda".into()
+        }
     }
     fn synchronize(&self) -> Result<(), Error> {
-        Err(Error::CudaUnavailable("no CUDA backend in this build".into()))
+        #[cfg(feature = "cuda")]
+        {
+            self.ctx
+                .synchronize()
+                .map_err(|e| Error::CudaUnavailable(format!("synchronize: {e:?}")))
+        }
+        #[cfg(not(feature = "cuda"))]
+        {
+            Err(Error::CudaUnavailable(
+                "gpumat was built without feature `cuda`".into(),
+            ))
+        }
     }
 }

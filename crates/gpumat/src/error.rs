@@ -44,4 +44,7 @@ pub enum Error {
     /// The CUDA backend is not available in this build or on this machine.
     #[error("CUDA backend unavailable: {0}")]
     CudaUnavailable(String),
+    /// NVRTC rejected a CUDA source (the source's name and the first error line).
+    #[error("CUDA compile failed: {0}")]
+    Compile(String),
 }

@@ -4,8 +4,11 @@
 //! expressions fused into one pass, reductions, 3x3 block scalars, block-sparse (BSR)
 //! matrices on a shared pattern, batched preconditioned CG (Jacobi, block-Jacobi, block
 //! incomplete Cholesky IC(0)) and a direct sparse Cholesky (AMD or nested-dissection order).
-//! The CPU backend runs the fused loops on rayon; the CUDA backend is a later addition
-//! ([`backend`]). [`raw::SharedParts`] lends disjoint parts of one buffer to parallel tasks
+//! The CPU backend runs the fused loops on rayon. For CUDA, every fused assignment also lowers
+//! to a CUDA kernel from the same op table ([`cuda_codegen`]), `build.rs` generates the kernels
+//! the solvers need ([`cuda::catalogue`]), and with feature `cuda` NVRTC compiles them
+//! ([`cuda::nvrtc`]; `tests/nvrtc_compile.rs` compiles every kernel to PTX and CUBIN). Running
+//! kernels on a device is not built yet ([`backend`]). [`raw::SharedParts`] lends disjoint parts of one buffer to parallel tasks
 //! whose parts are not regular chunks (cutfem's step assembly); gpumat's `unsafe` lives in
 //! the backend modules and there.
 //!
@@ -30,9 +33,15 @@
 //! assert_eq!(y.get(1, 0, 0), Vec3::splat(2.0));
 //! ```
 
+// The op table (visitor macros); first, so that every module below can expand it.
+#[macro_use]
+mod op_table;
+
 pub mod backend;
 mod block;
+pub mod cuda;
 pub mod cuda_codegen;
+pub mod cuda_text;
 mod error;
 pub mod expr;
 mod matrix;

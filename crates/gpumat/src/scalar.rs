@@ -79,10 +79,13 @@ pub trait Real:
     fn of(x: f64) -> Self;
     /// Converts to `f64` exactly.
     fn as_f64(self) -> f64;
+    /// The value as a CUDA C++ literal of this type: `2.0f` for `f32`, `2.0` for `f64`
+    /// (shortest round-trip digits); infinities and NaN as their bit patterns.
+    fn cuda_literal(self) -> String;
 }
 
 macro_rules! impl_real {
-    ($t:ty, $cuda:literal) => {
+    ($t:ty, $cuda:literal, |$v:ident| $literal:expr) => {
         impl Scalar for $t {
             type Real = $t;
             const LANES: usize = 1;
@@ -135,11 +138,23 @@ macro_rules! impl_real {
             fn as_f64(self) -> f64 {
                 self as f64
             }
+            fn cuda_literal(self) -> String {
+                let $v = self;
+                $literal
+            }
         }
     };
 }
-impl_real!(f32, "float");
-impl_real!(f64, "double");
+impl_real!(f32, "float", |x| if x.is_finite() {
+    format!("{x:?}f")
+} else {
+    format!("__int_as_float((int)0x{:08x}u)", x.to_bits())
+});
+impl_real!(f64, "double", |x| if x.is_finite() {
+    format!("{x:?}")
+} else {
+    format!("__longlong_as_double(0x{:016x}ull)", x.to_bits())
+});
 
 /// The element product `self * rhs` of two scalars (see the module docs for its meaning on
 /// blocks). Used by [`crate::Ex::cwise_mul`] and by sparse matrix-vector products.

@@ -151,7 +151,7 @@ fn fused_kernel_has_one_store_and_three_loads() {
     );
     assert!(p0 < p1 && p1 < p2, "operands in tree order: {line}");
     assert!(
-        line.contains("(in1[(r) + 4ull * ((c) + 3ull * (b))] * 2.0)"),
+        line.contains("(in1[(r) + 4ull * ((c) + 3ull * (b))] * 2.0f)"),
         "{line}"
     );
     assert!(

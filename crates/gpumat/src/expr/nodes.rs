@@ -135,8 +135,12 @@ impl<T: Scalar> Expr for Identity<T> {
     unsafe fn at_linear(&self, _i: usize) -> T {
         unreachable!("gpumat::Identity is never evaluated linearly")
     }
-    fn cuda(&self, _g: &mut CudaGen) -> String {
-        format!("(r == c ? {}(1) : {}(0))", T::CUDA_TYPE, T::CUDA_TYPE)
+    fn cuda(&self, g: &mut CudaGen) -> String {
+        let (r, c) = g.coords();
+        format!(
+            "({r} == {c} ? gpumat_one<{t}>() : gpumat_zero<{t}>())",
+            t = T::CUDA_TYPE
+        )
     }
 }
 
@@ -220,7 +224,7 @@ impl<E: Expr, Op: UnaryOp> Expr for Unary<E, Op> {
     }
     fn cuda(&self, g: &mut CudaGen) -> String {
         let a = self.e.cuda(g);
-        crate::ops::fill_cuda(Op::CUDA, &[&a])
+        crate::cuda_codegen::unary_text::<E::Elem>(Op::CUDA, &a)
     }
 }
 
@@ -291,7 +295,7 @@ impl<A: Expr, B: Expr<Elem = A::Elem>, Op: BinaryOp> Binary<A, B, Op> {
 }
 binary_node_impl!(Binary<A, B, Op> where [A: Expr, B: Expr<Elem = A::Elem>, Op: BinaryOp],
     Elem = A::Elem, |x, y| x.zip(y, Op::apply),
-    cuda = |s, a, b| crate::ops::fill_cuda(Op::CUDA, &[&a, &b]));
+    cuda = |s, a, b| crate::cuda_codegen::binary_text::<A::Elem>(Op::CUDA, &a, &b));
 
 /// Element product with the scalar's own product ([`ScalarMul`]).
 #[derive(Clone, Copy, Debug)]
@@ -392,7 +396,7 @@ impl<E: Expr> Scale<E> {
     }
 }
 map_node_impl!(Scale<E> where [E: Expr], Elem = E::Elem, |s, x| x.scale(s.s),
-    cuda = |s, a| format!("({a} * {:?})", s.s));
+    cuda = |s, a| format!("({a} * {})", crate::scalar::Real::cuda_literal(s.s)));
 
 /// Element type conversion.
 #[derive(Clone, Copy, Debug)]
@@ -517,9 +521,10 @@ impl<E: Expr> Expr for AsDiagonal<E> {
         unreachable!("gpumat::AsDiagonal is never evaluated linearly")
     }
     fn cuda(&self, g: &mut CudaGen) -> String {
+        let (r, c) = g.coords();
         g.diag_rc();
         let a = self.e.cuda(g);
         g.restore_rc();
-        format!("(r == c ? {a} : {}(0))", E::Elem::CUDA_TYPE)
+        format!("({r} == {c} ? {a} : gpumat_zero<{}>())", E::Elem::CUDA_TYPE)
     }
 }

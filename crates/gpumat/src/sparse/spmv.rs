@@ -3,7 +3,9 @@
 //! `y = A x`: `y(r, c, b) = sum_{k in row r} A_k(b) * x(col_k, c, b)`, where `*` is the block
 //! product ([`ScalarMul`]): `Mat3 * Vec3` for BSR. Each output row is computed by one thread
 //! from its own row of the pattern, so no atomics are needed and the result is deterministic.
-//! `A^T x` uses the cached [`super::TransposeMap`] to do the same row by row.
+//! `A^T x` uses the cached [`super::TransposeMap`] to do the same row by row. The CUDA text
+//! (see [`crate::cuda_codegen`]) is the same row loop over the CSR arrays, passed as kernel
+//! parameters (`row_ptr` as `unsigned long long`, `col_idx` as `unsigned int`, the values).
 
 use super::matrix::SparseMatrix;
 use super::pattern::SparsityPattern;
@@ -100,9 +102,23 @@ where
         unreachable!("gpumat::SpMV is never evaluated linearly")
     }
     fn cuda(&self, g: &mut CudaGen) -> String {
+        let (row, c) = g.coords();
+        let row_ptr = g.buffer("gpumat_index");
+        let col_idx = g.buffer("unsigned int");
+        let vals = g.buffer(T::CUDA_TYPE);
+        let (k, col, acc) = (g.fresh("k"), g.fresh("col"), g.fresh("acc"));
+        g.push_rc(col.clone(), c);
         let x = self.x.cuda(g);
-        let vals = g.load(T::CUDA_TYPE, Shape::new(self.a.nnz(), 1, self.a.batches()));
-        format!("gpumat_csr_row_dot(r, /*values*/ {vals}, /*x*/ {x})")
+        g.restore_rc();
+        let v = format!("{vals}[{k}{}]", batch_offset(self.a));
+        let prod = <T as ScalarMul<E::Elem>>::cuda_mul(&v, &x);
+        format!(
+            "([&]() {{ {out} {acc} = gpumat_zero<{out}>(); \
+             for (gpumat_index {k} = {row_ptr}[{row}]; {k} < {row_ptr}[({row}) + 1]; ++{k}) {{ \
+             const gpumat_index {col} = {col_idx}[{k}]; {acc} = {acc} + {prod}; }} \
+             return {acc}; }}())",
+            out = <Self::Elem as Scalar>::CUDA_TYPE,
+        )
     }
 }
 
@@ -165,9 +181,35 @@ where
         unreachable!("gpumat::SpMVT is never evaluated linearly")
     }
     fn cuda(&self, g: &mut CudaGen) -> String {
+        // the transpose map: entries of column `r` of A are `col_ptr[r]..col_ptr[r + 1]`, with
+        // their rows in `row_idx` and their entry index in `entry`
+        let (r, c) = g.coords();
+        let col_ptr = g.buffer("gpumat_index");
+        let row_idx = g.buffer("gpumat_index");
+        let entry = g.buffer("gpumat_index");
+        let vals = g.buffer(T::CUDA_TYPE);
+        let (j, row, acc) = (g.fresh("j"), g.fresh("row"), g.fresh("acc"));
+        g.push_rc(row.clone(), c);
         let x = self.x.cuda(g);
-        let vals = g.load(T::CUDA_TYPE, Shape::new(self.a.nnz(), 1, self.a.batches()));
-        format!("gpumat_csc_col_dot(r, /*values*/ {vals}, /*x*/ {x})")
+        g.restore_rc();
+        let v = format!("gpumat_transpose({vals}[{entry}[{j}]{}])", batch_offset(self.a));
+        let prod = <T as ScalarMul<E::Elem>>::cuda_mul(&v, &x);
+        format!(
+            "([&]() {{ {out} {acc} = gpumat_zero<{out}>(); \
+             for (gpumat_index {j} = {col_ptr}[{r}]; {j} < {col_ptr}[({r}) + 1]; ++{j}) {{ \
+             const gpumat_index {row} = {row_idx}[{j}]; {acc} = {acc} + {prod}; }} \
+             return {acc}; }}())",
+            out = <Self::Elem as Scalar>::CUDA_TYPE,
+        )
+    }
+}
+
+/// ` + nnz * b` when `a` has one value set per batch, nothing when its values broadcast.
+fn batch_offset<T: Scalar>(a: &SparseMatrix<T>) -> String {
+    if a.batches() == 1 {
+        String::new()
+    } else {
+        format!(" + {}ull * b", a.nnz())
     }
 }
 
@@ -210,6 +252,11 @@ impl<T: Scalar> Expr for SparseRef<'_, T> {
         std::ptr::eq(&**self.a.pattern(), p) || **self.a.pattern() == *p
     }
     fn cuda(&self, g: &mut CudaGen) -> String {
-        g.load(T::CUDA_TYPE, Shape::new(self.a.nnz(), 1, self.a.batches()))
+        let (r, c) = g.coords();
+        let row_ptr = g.buffer("gpumat_index");
+        let col_idx = g.buffer("unsigned int");
+        let vals = g.buffer(T::CUDA_TYPE);
+        let batch = batch_offset(self.a);
+        format!("gpumat_csr_get({row_ptr}, {col_idx}, {vals}{batch}, {r}, {c})")
     }
 }
