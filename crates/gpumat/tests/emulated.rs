@@ -10,7 +10,7 @@
 
 mod emu;
 
-use emu::{Args, Emu};
+use emu::{rnd, Args, Emu};
 use gpumat::cuda::{self, launch};
 use gpumat::{Axes, BlockJacobi, Jacobi, Mat3, Matrix, Preconditioner, SparseMatrix, Vec3};
 use std::sync::OnceLock;
@@ -18,15 +18,6 @@ use std::sync::OnceLock;
 fn emu() -> &'static Emu {
     static E: OnceLock<Emu> = OnceLock::new();
     E.get_or_init(|| Emu::build("catalogue", &cuda::catalogue()))
-}
-
-/// A deterministic pseudo-random value in [-1, 1) from a seed and an index.
-fn rnd(seed: u64, i: usize) -> f64 {
-    let mut x = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (i as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
-    x ^= x >> 31;
-    x = x.wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x ^= x >> 29;
-    (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
 }
 
 fn close(a: f64, b: f64, tol: f64) -> bool {

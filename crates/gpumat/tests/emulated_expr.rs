@@ -8,21 +8,12 @@
 
 mod emu;
 
-use emu::{Args, Emu};
+use emu::{rnd, Args, Emu};
 use gpumat::cuda::{launch, KernelSource};
 use gpumat::cuda_codegen::kernel_source;
 use gpumat::expr::{Binary, Ex, Expr};
 use gpumat::ops::{self, BinaryOp, UnaryOp, BINARY_TABLE, UNARY_TABLE};
 use gpumat::{Mat3, Matrix, Real, Scalar, ScalarMul, Shape, SparseMatrix, Vec3};
-
-/// A deterministic pseudo-random value in [-1, 1).
-fn rnd(seed: u64, i: usize) -> f64 {
-    let mut x = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (i as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
-    x ^= x >> 31;
-    x = x.wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x ^= x >> 29;
-    (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-}
 
 /// The output shape: 555 elements, three blocks of 256 threads.
 const OUT: Shape = Shape::new(37, 5, 3);

@@ -223,3 +223,12 @@ impl Emu {
         }
     }
 }
+
+/// A deterministic pseudo-random value in [-1, 1) from a seed and an index.
+pub fn rnd(seed: u64, i: usize) -> f64 {
+    let mut x = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (i as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
+    x ^= x >> 31;
+    x = x.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x ^= x >> 29;
+    (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+}
