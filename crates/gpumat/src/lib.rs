@@ -42,6 +42,7 @@ mod block;
 pub mod cuda;
 pub mod cuda_codegen;
 pub mod cuda_text;
+pub mod device;
 mod error;
 pub mod expr;
 mod matrix;

@@ -8,7 +8,7 @@
 //! sees half a file; a corrupt or unreadable file is compiled again.
 
 use super::nvrtc::{self, Compiled, Target};
-use super::{headers, KernelSource, NVRTC_OPTIONS};
+use super::{fnv1a, headers, KernelSource, NVRTC_OPTIONS};
 use crate::error::Error;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -22,16 +22,6 @@ pub struct KernelCache {
     mem: Mutex<HashMap<(u64, Target), Arc<Compiled>>>,
     compiles: AtomicUsize,
     disk_hits: AtomicUsize,
-}
-
-fn fnv1a(h: &mut u64, bytes: &[u8]) {
-    for &b in bytes {
-        *h ^= b as u64;
-        *h = h.wrapping_mul(0x0000_0100_0000_01B3);
-    }
-    // a separator, so ("ab", "c") and ("a", "bc") differ
-    *h ^= 0xFF;
-    *h = h.wrapping_mul(0x0000_0100_0000_01B3);
 }
 
 fn target_name(t: Target) -> String {

@@ -39,6 +39,19 @@ pub use corpus::corpus;
 
 include!(concat!(env!("OUT_DIR"), "/kernel_catalogue.rs"));
 
+/// One step of the 64-bit FNV-1a hash (offset basis `0xCBF2_9CE4_8422_2325`) over `bytes` and
+/// a separator, so ("ab", "c") and ("a", "bc") differ: the key of compiled kernels.
+#[cfg(any(feature = "cuda", feature = "emulate"))]
+pub(crate) fn fnv1a(h: &mut u64, bytes: &[u8]) {
+    for &b in bytes {
+        *h ^= b as u64;
+        *h = h.wrapping_mul(0x0000_0100_0000_01B3);
+    }
+    // a separator, so ("ab", "c") and ("a", "bc") differ
+    *h ^= 0xFF;
+    *h = h.wrapping_mul(0x0000_0100_0000_01B3);
+}
+
 /// Options every gpumat source is compiled with (besides the target architecture).
 pub const NVRTC_OPTIONS: &[&str] = &["--std=c++17", "-default-device"];
 

@@ -87,6 +87,9 @@ pub enum CgError<R: Real> {
         /// the iteration
         iteration: usize,
     },
+    /// A device call of the device CG ([`crate::device::device_cg`]) failed.
+    #[error("CG on the device: {0}")]
+    Device(crate::error::Error),
 }
 
 /// Solves `A x = b` for every batch, starting from the given `x` (warm start).
