@@ -17,7 +17,7 @@ use std::sync::OnceLock;
 
 fn emu() -> &'static Emu {
     static E: OnceLock<Emu> = OnceLock::new();
-    E.get_or_init(|| Emu::build("catalogue", &cuda::catalogue()))
+    E.get_or_init(|| Emu::build(&cuda::catalogue()))
 }
 
 fn close(a: f64, b: f64, tol: f64) -> bool {

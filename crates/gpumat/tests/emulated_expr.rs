@@ -255,7 +255,7 @@ fn expression_kernels_match_the_cpu_loop() {
         checked: 0,
     };
     all(&mut collect);
-    let emu = Emu::build("expressions", &collect.sources);
+    let emu = Emu::build(&collect.sources);
     let mut run = Run {
         emu: Some(&emu),
         sources: Vec::new(),

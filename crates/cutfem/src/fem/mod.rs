@@ -3,6 +3,7 @@
 pub mod advect;
 pub mod assembly;
 pub mod collision;
+pub mod device_solve;
 pub mod element;
 pub mod forward;
 pub mod grid;
@@ -15,6 +16,7 @@ pub mod tet;
 
 pub use assembly::{Assembler, Material};
 pub use collision::Ground;
+pub use device_solve::ComputeBackend;
 pub use grid::{Cell, Grid};
 pub use model::{
     Aabb, ExternalForce, Model, NewmarkCoefficients, NitschePenalty, NitscheQuadrature, NodalDamping,

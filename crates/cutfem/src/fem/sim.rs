@@ -480,6 +480,17 @@ impl Simulation {
         self.linear.factorizations()
     }
 
+    /// Runs the linear solves on `device` (`None`: on the host); `[numerics] backend = "cuda"`
+    /// sets CUDA device 0 ([`crate::fem::device_solve`]).
+    pub fn set_device(&mut self, device: Option<std::sync::Arc<dyn gpumat::device::Device>>) {
+        self.linear.set_device(device);
+    }
+
+    /// The device the linear solves run on, by name (`None`: the host).
+    pub fn device_name(&self) -> Option<String> {
+        self.linear.device_name()
+    }
+
     /// Drops a reused preconditioner factor (`rest_cholesky`): the next step factors afresh.
     /// The factor also follows changes of the model by itself, through the refactor rule.
     pub fn reset_preconditioner(&mut self) {

@@ -153,6 +153,8 @@ pub struct LinearSolver {
     repeated: Option<(u64, SparseCholesky<Mat3<f64>>)>,
     /// a pattern whose factor exceeded [`MAX_REUSED_FACTOR`]: not analysed again
     too_large: Option<std::sync::Arc<gpumat::SparsityPattern>>,
+    /// solves on a device (`[numerics] backend = "cuda"`, [`super::device_solve`])
+    device: Option<super::device_solve::DeviceSolver>,
 }
 
 /// The most entries of a factor made for a repeated matrix (8 bytes each: 200 MB).
@@ -182,6 +184,16 @@ impl LinearSolver {
             coords: positions.map(|p| p.iter().map(|v| [v.x, v.y, v.z]).collect()),
             ..Self::default()
         }
+    }
+
+    /// Solves on `device` from now on (`None`: on the host), [`super::device_solve`].
+    pub fn set_device(&mut self, device: Option<std::sync::Arc<dyn gpumat::device::Device>>) {
+        self.device = device.map(super::device_solve::DeviceSolver::new);
+    }
+
+    /// The device the solves run on, by name (`None`: the host).
+    pub fn device_name(&self) -> Option<String> {
+        self.device.as_ref().map(|d| d.name())
     }
 
     /// Numeric factorizations done so far.
@@ -242,6 +254,10 @@ impl LinearSolver {
             self.factorizations += 1;
             info.residual = direct(&chol, a, b, x);
             return Ok(info);
+        }
+        if let Some(device) = self.device.as_mut() {
+            let outcome = device.solve(a, b, x, &settings.cg)?;
+            return self.finish(outcome, a, b, x, settings, info);
         }
         if settings.reuse_factor && self.solve_repeated(a, b, x, settings, &mut info)? {
             return Ok(info);

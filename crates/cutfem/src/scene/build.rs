@@ -63,6 +63,11 @@ impl Scene {
         // a model that cannot be simulated names the scene and the key
         let mut sim = Simulation::new(grid, model).map_err(|e| Error::format(&self.path, e.to_string()))?;
         sim.solver = self.solver_settings(sim.solver);
+        if self.numerics.backend == crate::fem::ComputeBackend::Cuda {
+            let device = crate::fem::device_solve::cuda_device()
+                .map_err(|e| Error::format(&self.path, format!("[numerics] backend = \"cuda\": {e}")))?;
+            sim.set_device(Some(device));
+        }
         Ok(sim)
     }
 

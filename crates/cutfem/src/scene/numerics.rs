@@ -51,6 +51,10 @@ pub struct NumericsSection {
     /// per cut cell, sharp edges and corners kept; [`crate::surface::dual_contour`])
     #[serde(default)]
     pub surface_method: crate::surface::SurfaceMethod,
+    /// where the step's linear solves run: "cpu" (default) or "cuda" (block-Jacobi CG on CUDA
+    /// device 0; a one-line error where CUDA is not available; [`crate::fem::device_solve`])
+    #[serde(default)]
+    pub backend: crate::fem::ComputeBackend,
 }
 
 /// Largest `[numerics].surface_subdivision`.
@@ -92,6 +96,7 @@ impl Default for NumericsSection {
             element: crate::fem::element::Element::default(),
             surface_subdivision: surface_subdivision(),
             surface_method: Default::default(),
+            backend: Default::default(),
         }
     }
 }
