@@ -85,7 +85,7 @@ fn emulated() -> Option<Arc<dyn Device>> {
         return None;
     }
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("gpumat_emu");
-    Some(emulated::EmulatedDevice::new(&dir).unwrap())
+    Some(emulated::EmulatedDevice::open(&dir).unwrap())
 }
 
 fn compare(device: Arc<dyn Device>) {

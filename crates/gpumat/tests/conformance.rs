@@ -170,7 +170,8 @@ impl Backend for OnDevice {
 fn emulated() -> Option<OnDevice> {
     static D: OnceLock<Option<Arc<dyn Device>>> = OnceLock::new();
     D.get_or_init(|| {
-        emu::compiler_available().then(|| gpumat::device::emulated::EmulatedDevice::new(&emu::dir()).unwrap())
+        emu::compiler_available()
+            .then(|| gpumat::device::emulated::EmulatedDevice::open(&emu::dir()).unwrap())
     })
     .clone()
     .map(OnDevice)

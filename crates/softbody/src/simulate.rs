@@ -208,7 +208,9 @@ pub fn run(a: Args) -> Result<(), String> {
         },
         "solver": {
             "iterations": iterations, "max_residual": totals.info.residual, "fallbacks": totals.fallbacks,
-            "preconditioner": sim.solver.preconditioner.name(), "factorizations": sim.factorizations(),
+            "preconditioner": if sim.device_name().is_some() { "block_jacobi" } else { sim.solver.preconditioner.name() },
+            "factorizations": sim.factorizations(),
+            "backend": sim.device_name().unwrap_or_else(|| "cpu".into()),
             "contact_newton_iterations": totals.info.newton
         },
         "final": {"max_displacement": sim.max_displacement()},

@@ -235,7 +235,7 @@ pub struct EmulatedDevice {
 
 impl EmulatedDevice {
     /// Builds (or reuses from `dir`) the catalogue's emulation library.
-    pub fn new(dir: &Path) -> Result<Arc<dyn Device>, Error> {
+    pub fn open(dir: &Path) -> Result<Arc<dyn Device>, Error> {
         let lib = EmulatedLibrary::build(dir, &crate::cuda::catalogue())?;
         Ok(Arc::new(Self {
             lib,
