@@ -32,6 +32,7 @@ fn simulate_writes_frames_picture_and_json() {
     assert!(v["nodes"]["active"].as_u64().unwrap() > 0);
     assert_eq!(v["solver"]["iterations"].as_array().unwrap().len(), 4);
     assert_eq!(v["solver"]["preconditioner"], "block_ic0");
+    assert_eq!(v["solver"]["backend"], "cpu");
     // one incomplete factorization a step
     assert_eq!(v["solver"]["factorizations"], 4);
     assert!(v["final"]["max_displacement"].as_f64().unwrap() > 0.0);
@@ -91,6 +92,17 @@ fn bad_parameters_are_one_line_errors() {
         &tiny_bar(4, "[numerics]\npreconditioner = \"multigrid\"\n"),
         "unknown variant `multigrid`, expected one of `block_jacobi`, `block_ic0`, `rest_cholesky`",
     );
+    expect_error(
+        &tiny_bar(4, "[numerics]\nbackend = \"vulkan\"\n"),
+        "unknown variant `vulkan`, expected `cpu` or `cuda`",
+    );
+    if !cfg!(feature = "cuda") {
+        // a build without CUDA says so, naming the scene and the key
+        expect_error(
+            &tiny_bar(4, "[numerics]\nbackend = \"cuda\"\n"),
+            "[numerics] backend = \"cuda\": CUDA backend unavailable: this build has no CUDA support",
+        );
+    }
 }
 
 /// `[numerics] preconditioner` picks the CG preconditioner; the summary names it and counts
