@@ -7,8 +7,10 @@
 //! The CPU backend runs the fused loops on rayon. For CUDA, every fused assignment also lowers
 //! to a CUDA kernel from the same op table ([`cuda_codegen`]), `build.rs` generates the kernels
 //! the solvers need ([`cuda::catalogue`]), and with feature `cuda` NVRTC compiles them
-//! ([`cuda::nvrtc`]; `tests/nvrtc_compile.rs` compiles every kernel to PTX and CUBIN). Running
-//! kernels on a device is not built yet ([`backend`]). [`raw::SharedParts`] lends disjoint parts of one buffer to parallel tasks
+//! ([`cuda::nvrtc`]; `tests/nvrtc_compile.rs` compiles every kernel to PTX and CUBIN).
+//! [`device`] holds data on a device and runs the catalogue's kernels there: block-sparse
+//! matrices, block-Jacobi and the batched CG, on CUDA (feature `cuda`) or on a host emulation of
+//! CUDA (feature `emulate`, for tests). [`raw::SharedParts`] lends disjoint parts of one buffer to parallel tasks
 //! whose parts are not regular chunks (cutfem's step assembly); gpumat's `unsafe` lives in
 //! the backend modules and there.
 //!
