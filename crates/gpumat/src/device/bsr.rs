@@ -12,8 +12,8 @@
 use super::{Device, DeviceBuffer, DeviceReal};
 use crate::cuda::launch;
 use crate::error::Error;
-use crate::sparse::{SparseMatrix, SparsityPattern};
 use crate::scalar::Scalar;
+use crate::sparse::{SparseMatrix, SparsityPattern};
 use crate::{Mat3, Vec3};
 use std::sync::Arc;
 
@@ -152,7 +152,13 @@ where
 
     /// `self = cm M + ck K` entry by entry (the Newmark-1 matrix; all three on one pattern with
     /// the same batches).
-    pub fn assign_newmark(&mut self, m: &DeviceBsr3<R>, k: &DeviceBsr3<R>, cm: R, ck: R) -> Result<(), Error> {
+    pub fn assign_newmark(
+        &mut self,
+        m: &DeviceBsr3<R>,
+        k: &DeviceBsr3<R>,
+        cm: R,
+        ck: R,
+    ) -> Result<(), Error> {
         assert!(
             Arc::ptr_eq(&m.pattern, &self.pattern)
                 && Arc::ptr_eq(&k.pattern, &self.pattern)

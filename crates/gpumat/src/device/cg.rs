@@ -25,8 +25,8 @@
 use super::{Arg, Device, DeviceBlockJacobi, DeviceBsr3, DeviceBuffer, DeviceReal};
 use crate::cuda::launch;
 use crate::error::Error;
-use crate::solve::{CgError, CgInfo, CgParams};
 use crate::scalar::Scalar;
+use crate::solve::{CgError, CgInfo, CgParams};
 use crate::{Mat3, Vec3};
 use std::sync::Arc;
 
@@ -67,7 +67,12 @@ struct Work<R: DeviceReal> {
 }
 
 /// Launch helper: kernel `name` with the real type's suffix.
-fn run<R: DeviceReal>(dev: &Arc<dyn Device>, name: &str, grid: launch::Grid, args: &[Arg]) -> Result<(), Error> {
+fn run<R: DeviceReal>(
+    dev: &Arc<dyn Device>,
+    name: &str,
+    grid: launch::Grid,
+    args: &[Arg],
+) -> Result<(), Error> {
     // SAFETY: every call below passes the kernel's parameters in order (build.rs `cg`), on
     // buffers of this solve sized n x batches (vectors), parts x batches (partials) or
     // batches (scalars), as the grid assumes.
@@ -89,9 +94,19 @@ where
 {
     let parts = launch::reduction_parts(n) as u64;
     let partial = [x.arg(), y.arg(), Arg::Index(n as u64), w.partials.arg()];
-    run::<R>(dev, "gpumat_cg_dot_partial_vec3", launch::reduction(n, nb), &partial)?;
+    run::<R>(
+        dev,
+        "gpumat_cg_dot_partial_vec3",
+        launch::reduction(n, nb),
+        &partial,
+    )?;
     let finish = [w.partials.arg(), Arg::Index(parts), out.arg()];
-    run::<R>(dev, "gpumat_reduce_sum_finish", launch::reduction_finish(nb), &finish)
+    run::<R>(
+        dev,
+        "gpumat_reduce_sum_finish",
+        launch::reduction_finish(nb),
+        &finish,
+    )
 }
 
 /// Solves `A x = b` for every batch from the given `x` (warm start), with block-Jacobi.
@@ -162,13 +177,29 @@ where
 
     // r = b - A x, z = P^-1 r, (r.z, r.r), p = z (beta from (r.z)_old = 1 on p = 0)
     a.spmv(x, &mut w.q).map_err(e)?;
-    run::<R>(&dev, "gpumat_cg_residual_vec3", vgrid, &[w.r.arg(), b.arg(), w.q.arg(), nn, nbi]).map_err(e)?;
+    run::<R>(
+        &dev,
+        "gpumat_cg_residual_vec3",
+        vgrid,
+        &[w.r.arg(), b.arg(), w.q.arg(), nn, nbi],
+    )
+    .map_err(e)?;
     let rz_rr_and_beta = |w: &mut Work<R>| -> Result<(), Error> {
         precond.apply(&w.r, &mut w.z)?;
         let partial = [w.r.arg(), w.z.arg(), nn, w.pair_partials.arg()];
-        run::<R>(&dev, "gpumat_cg_dot2_partial_vec3", launch::reduction(n, nb), &partial)?;
+        run::<R>(
+            &dev,
+            "gpumat_cg_dot2_partial_vec3",
+            launch::reduction(n, nb),
+            &partial,
+        )?;
         let finish = [w.pair_partials.arg(), pair_parts, w.rz_rr.arg()];
-        run::<R>(&dev, "gpumat_reduce_sum_finish_pair", launch::reduction_finish(nb), &finish)?;
+        run::<R>(
+            &dev,
+            "gpumat_reduce_sum_finish_pair",
+            launch::reduction_finish(nb),
+            &finish,
+        )?;
         let beta = [
             w.rz_rr.arg(),
             w.rz_old.arg(),

@@ -151,7 +151,15 @@ impl EmulatedLibrary {
             std::fs::write(&cpp, &text).map_err(|e| fail(format!("{}: {e}", cpp.display())))?;
             let cxx = compiler();
             let out = Command::new(&cxx)
-                .args(["-std=c++20", "-O1", "-shared", "-fPIC", "-pthread", "-w", "-include"])
+                .args([
+                    "-std=c++20",
+                    "-O1",
+                    "-shared",
+                    "-fPIC",
+                    "-pthread",
+                    "-w",
+                    "-include",
+                ])
                 .arg(&emu_h)
                 .arg("-I")
                 .arg(&inc)
@@ -173,7 +181,8 @@ impl EmulatedLibrary {
         }
         // SAFETY: the library was built from gpumat's sources and the emulation header; its
         // initialisers only set up the C++ runtime.
-        let lib = unsafe { libloading::Library::new(&so) }.map_err(|e| fail(format!("{}: {e}", so.display())))?;
+        let lib =
+            unsafe { libloading::Library::new(&so) }.map_err(|e| fail(format!("{}: {e}", so.display())))?;
         Ok(Self { lib })
     }
 
@@ -195,7 +204,13 @@ impl EmulatedLibrary {
                 .lib
                 .get(format!("{name}__emu").as_bytes())
                 .map_err(|_| Error::CudaUnavailable(format!("emulated CUDA: no kernel {name}")))?;
-            launch(*thunk, args.as_mut_ptr(), grid.blocks.0, grid.blocks.1, grid.threads);
+            launch(
+                *thunk,
+                args.as_mut_ptr(),
+                grid.blocks.0,
+                grid.blocks.1,
+                grid.threads,
+            );
         }
         Ok(())
     }
