@@ -3,11 +3,12 @@
 //! With feature `cuda`, [`Cuda::new`] checks that the CUDA driver library (`libcuda`) and
 //! NVRTC (`libnvrtc`) can be loaded before touching cudarc (which panics on a missing library),
 //! then opens a context on the device: on a machine without CUDA it returns
-//! [`Error::CudaUnavailable`] with one line. What the CUDA backend can do so far is compile
-//! gpumat's kernels ([`crate::cuda`]); device buffers, launches and the device CG are not built
-//! yet. Without the feature [`Cuda::new`] is a stub returning the same typed error, so code
-//! written against the backend choice compiles and reports clearly (architecture principle 2;
-//! candle's `dummy_cuda_backend`).
+//! [`Error::CudaUnavailable`] with one line (the checks are [`crate::cuda`]'s
+//! `check_libraries`, shared with the device). This type only opens the context; device memory,
+//! kernel launches and the device CG are [`crate::device`]'s (`CudaDevice`, feature `cuda`).
+//! Without the feature [`Cuda::new`] is a stub returning the same typed error, so code written
+//! against the backend choice compiles and reports clearly (architecture principle 2; candle's
+//! `dummy_cuda_backend`).
 
 use crate::error::Error;
 
@@ -46,17 +47,7 @@ impl Cuda {
     /// device is missing.
     #[cfg(feature = "cuda")]
     pub fn new(ordinal: usize) -> Result<Self, Error> {
-        // SAFETY: only tries to open libcuda by its usual names (no CUDA call is made).
-        if !unsafe { cudarc::driver::sys::is_culib_present() } {
-            return Err(Error::CudaUnavailable(
-                "the CUDA driver library (libcuda.so) is not installed on this machine".into(),
-            ));
-        }
-        crate::cuda::nvrtc::load(
-            std::env::var_os("GPUMAT_NVRTC_DIR")
-                .as_deref()
-                .map(std::path::Path::new),
-        )?;
+        crate::cuda::check_libraries()?;
         let ctx = cudarc::driver::CudaContext::new(ordinal)
             .map_err(|e| Error::CudaUnavailable(format!("device {ordinal}: {e:?}")))?;
         Ok(Self { ctx })

@@ -44,6 +44,10 @@ pub enum Error {
     /// The CUDA backend is not available in this build or on this machine.
     #[error("CUDA backend unavailable: {0}")]
     CudaUnavailable(String),
+    /// A CUDA driver call failed on an open device (allocation, copy, launch, synchronisation),
+    /// or a kernel name is not in the catalogue.
+    #[error("CUDA device error: {0}")]
+    Device(String),
     /// NVRTC rejected a CUDA source (the source's name and the first error line).
     #[error("CUDA compile failed: {0}")]
     Compile(String),

@@ -446,5 +446,20 @@ macro_rules! conformance {
     };
 }
 
+/// CUDA device 0 (the tests' gpumat has feature `cuda`), or None with the reason printed.
+fn gpu() -> Option<OnDevice> {
+    static D: OnceLock<Option<Arc<dyn Device>>> = OnceLock::new();
+    D.get_or_init(|| match gpumat::device::CudaDevice::new(0) {
+        Ok(d) => Some(d),
+        Err(e) => {
+            eprintln!("no GPU: {e}");
+            None
+        }
+    })
+    .clone()
+    .map(OnDevice)
+}
+
 conformance!(cpu, Some(Cpu));
 conformance!(emulated, emulated());
+conformance!(cuda, gpu());

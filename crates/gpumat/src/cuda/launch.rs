@@ -1,6 +1,6 @@
 //! Launch geometry of gpumat's kernels: how many blocks of how many threads each kind of kernel
 //! runs on. The emulated logic check (`tests/emulated.rs`) launches through these functions;
-//! the device backend (not built yet) is meant to use the same ones.
+//! the devices of [`crate::device`] launch on the same ones.
 //!
 //! - element-wise kernels (expression kernels, vector updates, SpMV rows): one thread per
 //!   output element, `ceil(len / BLOCK)` blocks;

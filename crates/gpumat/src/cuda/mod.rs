@@ -24,9 +24,10 @@
 //! memory and on disk.
 //! Checked: every source compiles with NVRTC (`tests/nvrtc_compile.rs`), and runs correctly on
 //! a host emulation of CUDA against the CPU backend (`tests/emulated.rs`,
-//! `tests/emulated_expr.rs`). Not built yet: device memory, launches through the driver, the
-//! device CG loop and the cutfem backend (the parameters of each catalogue kernel are in
-//! `build.rs`, their layouts in `kernels/solver.cuh`).
+//! `tests/emulated_expr.rs`). Device memory, launches through the driver and the device CG loop
+//! are [`crate::device`]'s (`CudaDevice` with feature `cuda`; not yet run on a GPU). Not built
+//! yet: the cutfem backend (the parameters of each catalogue kernel are in `build.rs`, their
+//! layouts in `kernels/solver.cuh`).
 
 #[cfg(feature = "cuda")]
 pub mod cache;
@@ -50,6 +51,27 @@ pub(crate) fn fnv1a(h: &mut u64, bytes: &[u8]) {
     // a separator, so ("ab", "c") and ("a", "bc") differ
     *h ^= 0xFF;
     *h = h.wrapping_mul(0x0000_0100_0000_01B3);
+}
+
+/// The library checks before any cudarc call (cudarc panics when a library it calls is
+/// missing): the CUDA driver library (`libcuda`) must be loadable, and NVRTC, from the folder
+/// `GPUMAT_NVRTC_DIR` when set (see [`nvrtc::load`]), else by name. On a machine without them
+/// the result is [`crate::Error::CudaUnavailable`] with one line. Returns NVRTC's version.
+/// Shared by [`crate::backend::Cuda::new`] and [`crate::device::CudaDevice::new`].
+#[cfg(feature = "cuda")]
+pub fn check_libraries() -> Result<(i32, i32), crate::Error> {
+    // SAFETY: only tries to open libcuda by its usual names (no CUDA call is made).
+    if !unsafe { cudarc::driver::sys::is_culib_present() } {
+        return Err(crate::Error::CudaUnavailable(
+            "the CUDA driver library (libcuda.so) is not installed on this machine".into(),
+        ));
+    }
+    nvrtc::load(
+        std::env::var_os("GPUMAT_NVRTC_DIR")
+            .filter(|d| !d.is_empty())
+            .as_deref()
+            .map(std::path::Path::new),
+    )
 }
 
 /// Options every gpumat source is compiled with (besides the target architecture).

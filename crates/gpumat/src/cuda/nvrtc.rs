@@ -106,6 +106,31 @@ fn load_now(dir: Option<&Path>) -> Result<(i32, i32), Error> {
     Ok((major, minor))
 }
 
+/// The real architectures (`sm_XX` as `XX`) this NVRTC can compile CUBINs for, ascending.
+/// Call [`load`] first.
+pub fn supported_archs() -> Result<Vec<u32>, Error> {
+    load(None)?;
+    let mut n = 0i32;
+    // SAFETY: NVRTC is loaded (checked above); `n` is a valid out-pointer.
+    let rc = unsafe { sys::nvrtcGetNumSupportedArchs(&mut n) };
+    if rc != sys::nvrtcResult::NVRTC_SUCCESS {
+        return Err(Error::CudaUnavailable(format!(
+            "nvrtcGetNumSupportedArchs failed: {rc:?}"
+        )));
+    }
+    let mut archs = vec![0i32; n.max(0) as usize];
+    // SAFETY: `archs` has the `n` entries NVRTC reported.
+    let rc = unsafe { sys::nvrtcGetSupportedArchs(archs.as_mut_ptr()) };
+    if rc != sys::nvrtcResult::NVRTC_SUCCESS {
+        return Err(Error::CudaUnavailable(format!(
+            "nvrtcGetSupportedArchs failed: {rc:?}"
+        )));
+    }
+    let mut out: Vec<u32> = archs.into_iter().filter(|&a| a > 0).map(|a| a as u32).collect();
+    out.sort_unstable();
+    Ok(out)
+}
+
 fn cstring(s: &str, what: &str) -> Result<CString, Error> {
     CString::new(s).map_err(|_| Error::Compile(format!("{what} contains a NUL byte")))
 }

@@ -7,8 +7,11 @@
 //! ([`crate::cuda::catalogue`]) by name on a [`Grid`] from [`crate::cuda::launch`], with
 //! `cuLaunchKernel`-style arguments ([`Arg`]). Two devices implement it:
 //!
-//! - [`CudaDevice`] (feature `cuda`): a CUDA context through cudarc; the catalogue is compiled
-//!   by NVRTC at first use (cached by [`crate::cuda::cache::KernelCache`]).
+//! - `CudaDevice` (feature `cuda`, `device/cuda.rs`): a CUDA context and stream through cudarc's
+//!   driver API; the catalogue is compiled by NVRTC for the device's `sm_XX` when the device is
+//!   opened (cached on disk by [`crate::cuda::cache::KernelCache`] under `cache_dir()`), loaded
+//!   as one module per source, and launched with `cuLaunchKernel`. Without CUDA on the machine
+//!   `CudaDevice::new` is [`Error::CudaUnavailable`] with one line, never a panic.
 //! - [`emulated::EmulatedDevice`] (feature `emulate`, for tests): the same catalogue compiled by
 //!   the system C++ compiler against a host emulation of CUDA (blocks one after another, a
 //!   block's threads as OS threads, `__syncthreads` a barrier), its memory host memory. It runs
@@ -25,11 +28,15 @@
 
 mod bsr;
 mod cg;
+#[cfg(feature = "cuda")]
+mod cuda;
 #[cfg(feature = "emulate")]
 pub mod emulated;
 
 pub use bsr::{DeviceBlockJacobi, DeviceBsr3, DevicePattern};
 pub use cg::{device_cg, DeviceCgParams};
+#[cfg(feature = "cuda")]
+pub use cuda::{cache_dir, CudaDevice};
 
 use crate::cuda::launch::Grid;
 use crate::error::Error;
