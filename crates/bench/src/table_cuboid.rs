@@ -12,8 +12,7 @@
 use cutfem::fem::advect::Diffusion;
 use cutfem::fem::element::Element;
 use cutfem::fem::tet::TetSimulation;
-use cutfem::fem::{Aabb, Grid, Ground, Model, Preconditioner, Simulation};
-use cutfem::shapes::Shape;
+use cutfem::fem::{Grid, Model, Preconditioner, Simulation};
 use gpumat::Vec3;
 use serde::Serialize;
 use std::time::Instant;
@@ -148,34 +147,10 @@ const THESIS_B6: [ThesisRow; 4] = [
     ),
 ];
 
-/// The cuboid's model: B.5 (`ground = false`) or B.6 (`ground = true`).
+/// The cuboid's model: B.5 (`ground = false`) or B.6 (`ground = true`)
+/// ([`cutfem::fem::model::thesis_cuboid`]).
 pub fn cuboid_model(ground: bool) -> Model {
-    Model {
-        young: 2000.0,
-        poisson: 0.3,
-        damping_mass: 0.1,
-        damping_stiffness: 0.01,
-        gravity: Vec3::new(0.0, -10.0, 0.0),
-        corotation: true,
-        dirichlet: if ground {
-            vec![]
-        } else {
-            vec![Aabb {
-                min: [-0.9, 0.6, -0.6],
-                max: [-0.55, 1.4, 0.6],
-            }]
-        },
-        ground: ground.then_some(Ground {
-            normal: Vec3::new(0.0, 1.0, 0.0),
-            height: 0.75,
-            stiffness: 1.0e4,
-            softness: 100.0,
-            scheme: Default::default(),
-        }),
-        dt: 0.01,
-        theta: 0.6,
-        ..Model::default()
-    }
+    cutfem::fem::model::thesis_cuboid(ground).1
 }
 
 /// The grid's linear solve over a run with one preconditioner.
@@ -247,13 +222,9 @@ fn element_costs(grid: &Grid, model: &Model, steps: usize, cg_tolerance: f64) ->
 
 /// Measures one row.
 pub fn row(r: u32, ground: bool, steps: usize, cg_tolerance: f64) -> Result<CuboidRow, String> {
-    let shape = Shape::Box {
-        center: [0.0, 1.0, 0.0],
-        size: [1.29, 0.4, 0.8],
-    };
+    let (shape, model) = cutfem::fem::model::thesis_cuboid(ground);
     let sdf = shape.to_sdf(2.0 * r as f64, 6).map_err(|e| e.to_string())?;
     let grid = Grid::new(sdf).map_err(|e| e.to_string())?;
-    let model = cuboid_model(ground);
     let band = Diffusion::new(&grid).map_err(|e| e.to_string())?;
     let mut tet = TetSimulation::from_grid(&grid, model.clone()).map_err(|e| e.to_string())?;
     let mut sim = Simulation::new(grid.clone(), model.clone()).map_err(|e| e.to_string())?;

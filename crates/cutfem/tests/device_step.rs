@@ -5,9 +5,8 @@
 //! within 5% (plus one); on a real GPU (feature `cuda`) the same comparison runs; the scene key
 //! parses, and a build or machine without CUDA says so in one line naming the scene.
 
-use cutfem::fem::{Aabb, ComputeBackend, Grid, Ground, Model, Preconditioner, Simulation, SolverSettings};
+use cutfem::fem::{ComputeBackend, Grid, Model, Preconditioner, Simulation, SolverSettings};
 use cutfem::scene::Scene;
-use cutfem::shapes::Shape;
 use gpumat::device::Device;
 use gpumat::{Matrix, Vec3};
 use std::path::{Path, PathBuf};
@@ -15,38 +14,8 @@ use std::sync::Arc;
 
 /// The cuboid of Tables B.5/B.6 at resolution `r`, held at one end or on the ground.
 fn cuboid(r: f64, ground: bool) -> (Grid, Model) {
-    let shape = Shape::Box {
-        center: [0.0, 1.0, 0.0],
-        size: [1.29, 0.4, 0.8],
-    };
-    let grid = Grid::new(shape.to_sdf(2.0 * r, 2).unwrap()).unwrap();
-    let model = Model {
-        young: 2000.0,
-        poisson: 0.3,
-        damping_mass: 0.1,
-        damping_stiffness: 0.01,
-        gravity: Vec3::new(0.0, -10.0, 0.0),
-        corotation: true,
-        dirichlet: if ground {
-            vec![]
-        } else {
-            vec![Aabb {
-                min: [-0.9, 0.6, -0.6],
-                max: [-0.55, 1.4, 0.6],
-            }]
-        },
-        ground: ground.then_some(Ground {
-            normal: Vec3::new(0.0, 1.0, 0.0),
-            height: 0.75,
-            stiffness: 1.0e4,
-            softness: 100.0,
-            scheme: Default::default(),
-        }),
-        dt: 0.01,
-        theta: 0.6,
-        ..Model::default()
-    };
-    (grid, model)
+    let (shape, model) = cutfem::fem::model::thesis_cuboid(ground);
+    (Grid::new(shape.to_sdf(2.0 * r, 2).unwrap()).unwrap(), model)
 }
 
 fn run(

@@ -5,46 +5,15 @@
 //! and on a reset; the scene key parses and rejects unknown names in one line.
 
 use cutfem::fem::solver::{solve, LinearSolver};
-use cutfem::fem::{Aabb, Grid, Ground, Model, Preconditioner, Simulation, SolverSettings};
+use cutfem::fem::{Grid, Model, Preconditioner, Simulation, SolverSettings};
 use cutfem::scene::Scene;
-use cutfem::shapes::Shape;
 use gpumat::{Matrix, Vec3};
 use std::path::Path;
 
 /// The cuboid of Tables B.5/B.6 at resolution `r` (cells of size 1/(2r)).
 fn cuboid(r: f64, ground: bool) -> (Grid, Model) {
-    let shape = Shape::Box {
-        center: [0.0, 1.0, 0.0],
-        size: [1.29, 0.4, 0.8],
-    };
-    let grid = Grid::new(shape.to_sdf(2.0 * r, 2).unwrap()).unwrap();
-    let model = Model {
-        young: 2000.0,
-        poisson: 0.3,
-        damping_mass: 0.1,
-        damping_stiffness: 0.01,
-        gravity: Vec3::new(0.0, -10.0, 0.0),
-        corotation: true,
-        dirichlet: if ground {
-            vec![]
-        } else {
-            vec![Aabb {
-                min: [-0.9, 0.6, -0.6],
-                max: [-0.55, 1.4, 0.6],
-            }]
-        },
-        ground: ground.then_some(Ground {
-            normal: Vec3::new(0.0, 1.0, 0.0),
-            height: 0.75,
-            stiffness: 1.0e4,
-            softness: 100.0,
-            scheme: Default::default(),
-        }),
-        dt: 0.01,
-        theta: 0.6,
-        ..Model::default()
-    };
-    (grid, model)
+    let (shape, model) = cutfem::fem::model::thesis_cuboid(ground);
+    (Grid::new(shape.to_sdf(2.0 * r, 2).unwrap()).unwrap(), model)
 }
 
 struct Run {

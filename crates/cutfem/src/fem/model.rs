@@ -480,6 +480,44 @@ impl Model {
     }
 }
 
+/// The cuboid of the thesis' Tables B.5 and B.6: a 1.29 x 0.4 x 0.8 box centred at (0, 1, 0),
+/// E 2000, nu 0.3, Rayleigh damping (0.1, 0.01), gravity 10, corotation, `dt` 0.01, theta 0.6;
+/// held at its left end (B.5, `ground = false`) or dropped on the ground at height 0.75
+/// (B.6). Its grid at resolution `r` has cells of size `1 / (2 r)` (`shape.to_sdf(2 r, pad)`).
+pub fn thesis_cuboid(ground: bool) -> (crate::shapes::Shape, Model) {
+    let shape = crate::shapes::Shape::Box {
+        center: [0.0, 1.0, 0.0],
+        size: [1.29, 0.4, 0.8],
+    };
+    let model = Model {
+        young: 2000.0,
+        poisson: 0.3,
+        damping_mass: 0.1,
+        damping_stiffness: 0.01,
+        gravity: Vec3::new(0.0, -10.0, 0.0),
+        corotation: true,
+        dirichlet: if ground {
+            vec![]
+        } else {
+            vec![Aabb {
+                min: [-0.9, 0.6, -0.6],
+                max: [-0.55, 1.4, 0.6],
+            }]
+        },
+        ground: ground.then_some(Ground {
+            normal: Vec3::new(0.0, 1.0, 0.0),
+            height: 0.75,
+            stiffness: 1.0e4,
+            softness: 100.0,
+            scheme: Default::default(),
+        }),
+        dt: 0.01,
+        theta: 0.6,
+        ..Model::default()
+    };
+    (shape, model)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
