@@ -169,6 +169,20 @@ pub fn refine_check(
     params: &RefineParams,
     progress: &mut dyn FnMut(&str, usize, usize),
 ) -> Result<RefineCheck, Error> {
+    refine_check_observed(scene, grid, model, params, progress, &mut |_, _| {})
+}
+
+/// [`refine_check`], with `fine(sim, t)` called on the `2r` run at frame 0 and after every step
+/// `t` (another check can use the same finer run: the diagnosis' persistence,
+/// `crate::diagnosis::discretisation`).
+pub fn refine_check_observed(
+    scene: &Scene,
+    grid: &Grid,
+    model: &Model,
+    params: &RefineParams,
+    progress: &mut dyn FnMut(&str, usize, usize),
+    observe_fine: &mut dyn FnMut(&Simulation, usize),
+) -> Result<RefineCheck, Error> {
     let r = scene.resolution()?;
     let steps = params.steps.unwrap_or(scene.time.steps);
     let frames: Vec<usize> = match &params.frames {
@@ -192,6 +206,7 @@ pub fn refine_check(
         &points,
         "resolution r",
         progress,
+        &mut |_, _| {},
     )?;
     let fine = at_resolution(scene, grid, model, 2.0 * r)?;
     let fine = run(
@@ -203,6 +218,7 @@ pub fn refine_check(
         &points,
         "resolution 2r",
         progress,
+        observe_fine,
     )?;
     let (per_frame, difference, max_difference) = compare(&base, &fine, &weights, &frames);
     let zero = vec![vec![Some([0.0; 3]); points.len()]; frames.len()];
@@ -211,8 +227,19 @@ pub fn refine_check(
     let coarser_difference = if params.no_order {
         None
     } else {
-        let coarse = at_resolution(scene, grid, model, 0.5 * r)
-            .and_then(|(g, m)| run(g, m, scene, steps, &frames, &points, "resolution r/2", progress));
+        let coarse = at_resolution(scene, grid, model, 0.5 * r).and_then(|(g, m)| {
+            run(
+                g,
+                m,
+                scene,
+                steps,
+                &frames,
+                &points,
+                "resolution r/2",
+                progress,
+                &mut |_, _| {},
+            )
+        });
         match coarse {
             Ok(c) => Some(compare(&c, &base, &weights, &frames).1),
             Err(e) => {
@@ -361,14 +388,17 @@ fn run(
     points: &[[f64; 3]],
     level: &str,
     progress: &mut dyn FnMut(&str, usize, usize),
+    observe: &mut dyn FnMut(&Simulation, usize),
 ) -> Result<Track, Error> {
     let mut sim = Simulation::new(grid, model).map_err(|e| Error::step(level, e))?;
     sim.solver = scene.solver_settings(sim.solver);
     let mut out = Vec::with_capacity(frames.len());
+    observe(&sim, 0);
     for f in 1..=steps {
         sim.step()
             .map_err(|e| Error::step(format!("{level}, step {f}"), e))?;
         progress(level, f, steps);
+        observe(&sim, f);
         if frames.contains(&f) {
             out.push(
                 points

@@ -107,21 +107,32 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
             ..Default::default()
         };
         stages.push(("discretisation check".into(), Instant::now()));
-        let mut v = crate::refine_check::run(
+        // the refine check's 2r run of the model as given also serves the persistence check
+        // below: its residuals against the observations are gathered as it runs
+        let fine_setup = Setup { reach: None, ..setup };
+        let steps = job.scene.time.steps;
+        let share = d.missing_effect.is_some() && d.fitted_scene.time.steps == steps;
+        let mut finer = adjoint::diagnosis::FinerRun::new(&fine_setup);
+        let mut v = crate::refine_check::run_observed(
             job.scene,
             &sim.grid,
             &d.model,
             &params,
             Some(d.noise_floor),
             job.quiet,
+            &mut |s, t| {
+                if share {
+                    finer.observe(s, t)
+                }
+            },
         );
         // discretisation is not missing physics: the named effect's improvement must persist
         // on the grid of twice the resolution (`adjoint::diagnosis::discretisation`)
         if d.missing_effect.is_some() {
             stages.push(("persistence at 2r".into(), Instant::now()));
-            let setup = Setup { reach: None, ..setup };
             let fine = 2.0 * d.fitted_scene.resolution().map_err(|e| e.to_string())?;
-            match adjoint::diagnosis::persistence(&setup, &d, &sim.grid, fine, &job.settings) {
+            let given = finer.rms(steps);
+            match adjoint::diagnosis::persistence(&fine_setup, &d, &sim.grid, fine, &job.settings, given) {
                 Ok(Some(p)) => {
                     let withdrew = adjoint::diagnosis::weigh_discretisation(&mut d, &p);
                     crate::note!(

@@ -3,8 +3,8 @@
 //! bar, a summary line and a warning on stderr, and its JSON.
 
 use crate::progress;
-use adjoint::refine::{refine_check, RefineParams};
-use cutfem::fem::{Grid, Model};
+use adjoint::refine::{refine_check_observed, RefineParams};
+use cutfem::fem::{Grid, Model, Simulation};
 use cutfem::scene::Scene;
 use serde_json::{json, Value};
 
@@ -19,12 +19,27 @@ pub fn run(
     noise: Option<f64>,
     quiet: bool,
 ) -> Value {
+    run_observed(scene, grid, model, params, noise, quiet, &mut |_, _| {})
+}
+
+/// [`run`], with `observe_fine` called on the `2r` run's frames
+/// (`adjoint::refine::refine_check_observed`).
+pub fn run_observed(
+    scene: &Scene,
+    grid: &Grid,
+    model: &Model,
+    params: &RefineParams,
+    noise: Option<f64>,
+    quiet: bool,
+    observe_fine: &mut dyn FnMut(&Simulation, usize),
+) -> Value {
     let bar = progress::bar(1, "refine check", quiet);
-    let result = refine_check(scene, grid, model, params, &mut |level, step, steps| {
+    let mut progress = |level: &str, step: usize, steps: usize| {
         bar.set_length(steps as u64);
         bar.set_position(step as u64);
         bar.set_message(level.to_string());
-    });
+    };
+    let result = refine_check_observed(scene, grid, model, params, &mut progress, observe_fine);
     bar.finish_and_clear();
     match result {
         Ok(check) => {

@@ -70,15 +70,94 @@ impl Persistence {
     }
 }
 
+/// The residuals of the model as given on the finer grid, gathered from a run made for
+/// another purpose: the refine check's `2r` run of the same model
+/// ([`crate::refine::refine_check_observed`]), so that [`persistence`] simulates only the named
+/// effect's refit there. [`FinerRun::observe`] is called at frame 0 and after every step.
+pub struct FinerRun<'a> {
+    setup: &'a Setup<'a>,
+    cost: Option<(SurfaceCost, Vec<gpumat::Vec3<f64>>)>,
+    records: Vec<residuals::PointResidual>,
+    error: Option<String>,
+    frames: usize,
+}
+
+impl std::fmt::Debug for FinerRun<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FinerRun")
+            .field("frames", &self.frames)
+            .field("records", &self.records.len())
+            .field("error", &self.error)
+            .finish()
+    }
+}
+
+impl<'a> FinerRun<'a> {
+    /// Gathers residuals against `setup`'s observations.
+    pub fn new(setup: &'a Setup<'a>) -> Self {
+        Self {
+            setup,
+            cost: None,
+            records: Vec::new(),
+            error: None,
+            frames: 0,
+        }
+    }
+    /// The run's state at frame `t` (frames in order from 0).
+    pub fn observe(&mut self, sim: &Simulation, t: usize) {
+        if self.error.is_some() || t != self.frames {
+            self.error
+                .get_or_insert_with(|| format!("frame {t} out of order"));
+            return;
+        }
+        if self.cost.is_none() {
+            let setup = self.setup;
+            let cost = SurfaceCost::new(
+                &sim.grid,
+                observed_frames(setup.observations, setup.eyes),
+                setup.robust,
+            )
+            .map(|c| c.with_reach(setup.reach.unwrap_or_else(|| Setup::reach(&sim.grid))));
+            match cost {
+                Ok(c) => {
+                    let zero = gpumat::Matrix::zeros(sim.grid.dofs(), 1, 1);
+                    let reference = c.vertices(&zero);
+                    self.cost = Some((c, reference));
+                }
+                Err(e) => {
+                    self.error = Some(e.to_string());
+                    return;
+                }
+            }
+        }
+        let (cost, reference) = self.cost.as_ref().expect("made above");
+        residuals::frame_residuals(
+            &sim.u,
+            t,
+            cost,
+            self.setup.observations,
+            reference,
+            &mut self.records,
+        );
+        self.frames += 1;
+    }
+    /// `(rms, points)` when the run covered frames `0..=steps` without error.
+    pub fn rms(&self, steps: usize) -> Option<(f64, usize)> {
+        (self.error.is_none() && self.frames == steps + 1).then(|| residuals::rms(self.records.iter()))
+    }
+}
+
 /// Whether the named effect's improvement persists at resolution `resolution` (module docs);
-/// `grid` is the diagnosis' grid (the scene's resolution). `None` when no effect is named (or
-/// the named one has no refit).
+/// `grid` is the diagnosis' grid (the scene's resolution). `given`: the model as given's
+/// `(rms, points)` at `resolution` when a [`FinerRun`] has them (else it is simulated here).
+/// `None` when no effect is named (or the named one has no refit).
 pub fn persistence(
     setup: &Setup,
     d: &Diagnosis,
     grid: &Grid,
     resolution: f64,
     settings: &DiagnoseParams,
+    given: Option<(f64, usize)>,
 ) -> Result<Option<Persistence>, Error> {
     let Some(name) = d.missing_effect.as_ref() else {
         return Ok(None);
@@ -91,7 +170,10 @@ pub fn persistence(
     };
     let r = d.fitted_scene.resolution()?;
     crate::refine::check_memory(grid, r, resolution)?;
-    let (rms, points) = rms_at(setup, &d.fitted_scene, grid, &d.model, resolution)?;
+    let (rms, points) = match given {
+        Some(g) => g,
+        None => rms_at(setup, &d.fitted_scene, grid, &d.model, resolution)?,
+    };
     let (rms_after, _) = rms_at(setup, scene, grid, model, resolution)?;
     let (delta_bic, persists) = evidence(rms, rms_after, points, c.params.len(), settings);
     Ok(Some(Persistence {

@@ -32,7 +32,7 @@ pub mod residuals;
 pub mod score;
 mod search;
 
-pub use discretisation::{persistence, weigh_discretisation, Persistence};
+pub use discretisation::{persistence, weigh_discretisation, FinerRun, Persistence};
 
 use crate::cost::Robust;
 use crate::cost_mesh::SurfaceCost;

@@ -62,53 +62,66 @@ pub fn point_residuals(
     sim.reset(model)?;
     let zero: Matrix<Vec3<f64>> = Matrix::zeros(sim.grid.dofs(), 1, 1);
     let reference = cost.vertices(&zero);
-    let faces = &cost.surface().mesh.faces;
     let mut out = Vec::new();
     for t in 0..=steps {
         if t > 0 {
             sim.step().map_err(|e| Error::step(format!("step {t}"), e))?;
         }
-        let obs = observations.frame(t);
-        if obs.is_empty() {
-            continue;
-        }
-        let x = cost.vertices(&sim.u);
-        let hits = cost.locate(t, &x);
-        for (p, hit) in obs.iter().zip(hits) {
-            let r = match hit {
-                Some(h) => {
-                    let f = faces[h.face];
-                    let at = |v: &[Vec3<f64>]| {
-                        (v[f[0] as usize] * h.bary[0]
-                            + v[f[1] as usize] * h.bary[1]
-                            + v[f[2] as usize] * h.bary[2])
-                            .to_array()
-                    };
-                    let q = at(&x);
-                    PointResidual {
-                        frame: t,
-                        camera: p.camera,
-                        position: p.position,
-                        residual: h.residual,
-                        vector: [0, 1, 2].map(|d| p.position[d] - q[d]),
-                        reference: at(&reference),
-                        outside: false,
-                    }
-                }
-                None => PointResidual {
+        frame_residuals(&sim.u, t, cost, observations, &reference, &mut out);
+    }
+    Ok(out)
+}
+
+/// The residuals of frame `t`'s observed points at displacement `u` (appended to `out`);
+/// `reference` is `cost.vertices` at zero displacement.
+pub fn frame_residuals(
+    u: &Matrix<Vec3<f64>>,
+    t: usize,
+    cost: &SurfaceCost,
+    observations: &Observations,
+    reference: &[Vec3<f64>],
+    out: &mut Vec<PointResidual>,
+) {
+    let obs = observations.frame(t);
+    if obs.is_empty() {
+        return;
+    }
+    let faces = &cost.surface().mesh.faces;
+    let x = cost.vertices(u);
+    let hits = cost.locate(t, &x);
+    for (p, hit) in obs.iter().zip(hits) {
+        let r = match hit {
+            Some(h) => {
+                let f = faces[h.face];
+                let at = |v: &[Vec3<f64>]| {
+                    (v[f[0] as usize] * h.bary[0]
+                        + v[f[1] as usize] * h.bary[1]
+                        + v[f[2] as usize] * h.bary[2])
+                        .to_array()
+                };
+                let q = at(&x);
+                PointResidual {
                     frame: t,
                     camera: p.camera,
                     position: p.position,
-                    residual: cost.outside_residual,
-                    vector: [0.0; 3],
-                    reference: p.position,
-                    outside: true,
-                },
-            };
-            out.push(r);
-        }
+                    residual: h.residual,
+                    vector: [0, 1, 2].map(|d| p.position[d] - q[d]),
+                    reference: at(reference),
+                    outside: false,
+                }
+            }
+            None => PointResidual {
+                frame: t,
+                camera: p.camera,
+                position: p.position,
+                residual: cost.outside_residual,
+                vector: [0.0; 3],
+                reference: p.position,
+                outside: true,
+            },
+        };
+        out.push(r);
     }
-    Ok(out)
 }
 
 /// Root mean square of residuals.
