@@ -225,3 +225,76 @@ fn sdf_bodies_resample() {
     eprintln!("volume {v0} -> {v1}");
     assert!((v1 - v0).abs() < 0.02 * v0, "{v0} {v1}");
 }
+
+/// The refine check's `2r` run serves the diagnosis' persistence check
+/// (`adjoint::diagnosis::FinerRun`): the observer sees frames `0..=steps` of a simulation on
+/// the grid of twice the resolution, and the residuals it gathers from a run are those
+/// `residuals::point_residuals` computes on the same run, to the bit.
+#[test]
+fn the_finer_run_gathers_the_residuals_of_its_run() {
+    use adjoint::diagnosis::residuals::{point_residuals, rms};
+    use adjoint::diagnosis::{FinerRun, Setup};
+    use adjoint::observe::{synthesize, RigParams};
+    let s = scene(
+        "[body]\nshape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.8, 0.2, 0.2] }\nresolution = 6\n\
+         [material]\nyoung = 800.0\npoisson = 0.3\n[gravity]\nacceleration = [0.0, -10.0, 0.0]\n\
+         [[dirichlet]]\nmin = [-0.5, 0.8, -0.2]\nmax = [-0.35, 1.2, 0.2]\n\
+         [time]\ndt = 0.03\nsteps = 4\n[model]\neffects = [\"gravity\"]\n",
+    );
+    let (obs, cams) = synthesize(&s, &RigParams::default(), 0.001, 4, |_, _| {}).unwrap();
+    let eyes: Vec<[f64; 3]> = cams.iter().map(|c| c.camera.eye).collect();
+    let setup = Setup {
+        observations: &obs,
+        eyes: &eyes,
+        cameras: &cams,
+        robust: adjoint::cost::Robust::Squared,
+        steps: None,
+        reach: None,
+    };
+    let sim = s.build_simulation().unwrap();
+    let h = sim.grid.h();
+    // the observer on the refine check's 2r run
+    let mut seen = Vec::new();
+    let mut finer = FinerRun::new(&setup);
+    let params = RefineParams {
+        no_order: true,
+        ..RefineParams::default()
+    };
+    adjoint::refine::refine_check_observed(
+        &s,
+        &sim.grid,
+        &sim.model,
+        &params,
+        &mut |_, _, _| {},
+        &mut |run, t| {
+            assert!((run.grid.h() - 0.5 * h).abs() < 1e-12, "the 2r grid");
+            seen.push(t);
+            finer.observe(run, t);
+        },
+    )
+    .unwrap();
+    assert_eq!(seen, vec![0, 1, 2, 3, 4]);
+    assert!(finer.rms(4).is_some() && finer.rms(3).is_none());
+    // the same gathering on a plain run equals point_residuals on it
+    let mut a = s.build_simulation().unwrap();
+    let model = a.model.clone();
+    let mut on_plain = FinerRun::new(&setup);
+    on_plain.observe(&a, 0);
+    for t in 1..=4 {
+        a.step().unwrap();
+        on_plain.observe(&a, t);
+    }
+    let mut b = s.build_simulation().unwrap();
+    let cost = adjoint::cost_mesh::SurfaceCost::new(
+        &b.grid,
+        adjoint::fit::observed_frames(&obs, &eyes),
+        adjoint::cost::Robust::Squared,
+    )
+    .unwrap()
+    .with_reach(Setup::reach(&b.grid));
+    let records = point_residuals(&mut b, model, 4, &cost, &obs).unwrap();
+    let (want, n) = rms(records.iter());
+    let (got, m) = on_plain.rms(4).unwrap();
+    assert!(n > 100 && m == n, "{n} {m}");
+    assert_eq!(got.to_bits(), want.to_bits(), "{got} {want}");
+}
