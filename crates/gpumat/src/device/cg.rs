@@ -1,5 +1,6 @@
-//! Batched preconditioned CG on a device (thesis Alg. 4.1, sec. 3.4), the CPU's [`crate::cg`]
-//! in the catalogue's kernels.
+//! Batched preconditioned CG on a device (thesis Alg. 4.1, sec. 3.4): the one algorithm
+//! [`run_cg`] (the host's [`crate::cg`] runs it too) over the device's operations, each a
+//! kernel of the catalogue.
 //!
 //! Per iteration, for every batch `b` at once: `q = A p`; `pq_b = p_b . q_b` (two-phase
 //! reduction, fixed tree); `alpha_b = (r_b . z_b) / pq_b` (zero once the batch has stopped);
@@ -26,7 +27,7 @@ use super::{Arg, Device, DeviceBlockJacobi, DeviceBsr3, DeviceBuffer, DeviceReal
 use crate::cuda::launch;
 use crate::error::Error;
 use crate::scalar::Scalar;
-use crate::solve::{CgError, CgInfo, CgParams};
+use crate::solve::{run_cg, CgError, CgInfo, CgOps, CgParams, CgState};
 use crate::{Mat3, Vec3};
 use std::sync::Arc;
 
@@ -109,11 +110,167 @@ where
     )
 }
 
-/// Solves `A x = b` for every batch from the given `x` (warm start), with block-Jacobi.
+/// The device's [`CgOps`]: every vector and per-batch scalar on the device.
+struct DeviceCg<'a, R: DeviceReal> {
+    dev: Arc<dyn Device>,
+    a: &'a DeviceBsr3<R>,
+    b: &'a DeviceBuffer<Vec3<R>>,
+    x: &'a mut DeviceBuffer<Vec3<R>>,
+    precond: &'a DeviceBlockJacobi<R>,
+    w: Work<R>,
+    n: usize,
+    nb: usize,
+}
+
+impl<R: DeviceReal> DeviceCg<'_, R>
+where
+    Mat3<R>: Scalar + bytemuck::Pod,
+    Vec3<R>: Scalar + bytemuck::Pod,
+{
+    fn nn(&self) -> Arg {
+        Arg::Index(self.n as u64)
+    }
+    fn nbi(&self) -> Arg {
+        Arg::Index(self.nb as u64)
+    }
+    /// `z = P^-1 r`, `(r.z, r.r)`, `beta` with each batch's stop test, `p = z + beta p`.
+    fn precondition_and_turn(&mut self) -> Result<(), Error> {
+        let (n, nb, nn, nbi) = (self.n, self.nb, self.nn(), self.nbi());
+        let (dev, w) = (&self.dev, &mut self.w);
+        self.precond.apply(&w.r, &mut w.z)?;
+        let parts = Arg::Index(launch::reduction_parts(n) as u64);
+        let partial = [w.r.arg(), w.z.arg(), nn, w.pair_partials.arg()];
+        run::<R>(
+            dev,
+            "gpumat_cg_dot2_partial_vec3",
+            launch::reduction(n, nb),
+            &partial,
+        )?;
+        let finish = [w.pair_partials.arg(), parts, w.rz_rr.arg()];
+        run::<R>(
+            dev,
+            "gpumat_reduce_sum_finish_pair",
+            launch::reduction_finish(nb),
+            &finish,
+        )?;
+        let beta = [
+            w.rz_rr.arg(),
+            w.rz_old.arg(),
+            w.tol2.arg(),
+            w.active.arg(),
+            w.iterations.arg(),
+            w.beta.arg(),
+            nbi,
+        ];
+        run::<R>(dev, "gpumat_cg_beta", launch::elementwise(nb), &beta)?;
+        let update = [w.p.arg(), w.z.arg(), w.beta.arg(), w.active.arg(), nn, nbi];
+        run::<R>(
+            dev,
+            "gpumat_cg_update_p_vec3",
+            launch::elementwise(n * nb),
+            &update,
+        )
+    }
+}
+
+impl<R: DeviceReal> CgOps<Vec3<R>> for DeviceCg<'_, R>
+where
+    Mat3<R>: Scalar + bytemuck::Pod,
+    Vec3<R>: Scalar<Real = R> + bytemuck::Pod,
+{
+    fn b_norms(&mut self) -> Result<Vec<R>, CgError<R>> {
+        let out = DeviceBuffer::<R>::zeros(&self.dev, self.nb).map_err(CgError::Device)?;
+        dot(&self.dev, &self.w, self.b, self.b, &out, self.n, self.nb).map_err(CgError::Device)?;
+        Ok(out
+            .to_vec()
+            .map_err(CgError::Device)?
+            .iter()
+            .map(|&v| v.sqrt())
+            .collect())
+    }
+    fn start(&mut self, target: &[R]) -> Result<(), CgError<R>> {
+        let tol2: Vec<R> = target.iter().map(|&t| t * t).collect();
+        let e = CgError::Device;
+        self.w.tol2.upload(&tol2).map_err(e)?;
+        // r = b - A x; z, (r.z, r.r), p = z (beta from (r.z)_old = 1 on p = 0; the first beta
+        // launch counts one iteration, taken off in `state`)
+        self.a.spmv(self.x, &mut self.w.q).map_err(e)?;
+        let args = [
+            self.w.r.arg(),
+            self.b.arg(),
+            self.w.q.arg(),
+            self.nn(),
+            self.nbi(),
+        ];
+        run::<R>(
+            &self.dev,
+            "gpumat_cg_residual_vec3",
+            launch::elementwise(self.n * self.nb),
+            &args,
+        )
+        .map_err(e)?;
+        self.precondition_and_turn().map_err(e)
+    }
+    fn iterate(&mut self, _it: usize) -> Result<(), CgError<R>> {
+        let e = CgError::Device;
+        let (n, nb, nn, nbi) = (self.n, self.nb, self.nn(), self.nbi());
+        self.a.spmv(&self.w.p, &mut self.w.q).map_err(e)?;
+        let w = &self.w;
+        dot(&self.dev, w, &w.p, &w.q, &w.pq, n, nb).map_err(e)?;
+        let alpha = [w.rz_rr.arg(), w.pq.arg(), w.active.arg(), w.alpha.arg(), nbi];
+        run::<R>(&self.dev, "gpumat_cg_alpha", launch::elementwise(nb), &alpha).map_err(e)?;
+        let xr = [
+            self.x.arg(),
+            w.r.arg(),
+            w.p.arg(),
+            w.q.arg(),
+            w.alpha.arg(),
+            w.active.arg(),
+            nn,
+            nbi,
+        ];
+        run::<R>(
+            &self.dev,
+            "gpumat_cg_update_xr_vec3",
+            launch::elementwise(n * nb),
+            &xr,
+        )
+        .map_err(e)?;
+        self.precondition_and_turn().map_err(e)
+    }
+    fn state(&mut self) -> Result<CgState<R>, CgError<R>> {
+        let e = CgError::Device;
+        let rz_rr = self.w.rz_rr.to_vec().map_err(e)?;
+        Ok(CgState {
+            active: self
+                .w
+                .active
+                .to_vec()
+                .map_err(e)?
+                .iter()
+                .map(|&f| f != 0)
+                .collect(),
+            rz: rz_rr.iter().map(|p| p[0]).collect(),
+            rr: rz_rr.iter().map(|p| p[1]).collect(),
+            pq: self.w.pq.to_vec().map_err(e)?,
+            iterations: self
+                .w
+                .iterations
+                .to_vec()
+                .map_err(e)?
+                .iter()
+                .map(|&k| k.saturating_sub(1) as usize)
+                .collect(),
+        })
+    }
+}
+
+/// Solves `A x = b` for every batch from the given `x` (warm start), with block-Jacobi:
+/// [`run_cg`] over the device's operations, reading the state back every
+/// [`DeviceCgParams::check_every`] iterations.
 ///
 /// `b` and `x` hold `n x batches` vectors, `n = A.rows()`. The result is within rounding of
-/// the CPU's [`crate::cg`] with [`crate::BlockJacobi`] (the dots are summed in another order),
-/// with the same per-batch iteration counts up to a tie at the tolerance.
+/// the CPU's [`crate::cg`] with [`crate::BlockJacobi`] (the dots are summed in another order).
 pub fn device_cg<R: DeviceReal>(
     a: &DeviceBsr3<R>,
     b: &DeviceBuffer<Vec3<R>>,
@@ -123,7 +280,7 @@ pub fn device_cg<R: DeviceReal>(
 ) -> Result<CgInfo<R>, CgError<R>>
 where
     Mat3<R>: Scalar + bytemuck::Pod,
-    Vec3<R>: Scalar + bytemuck::Pod,
+    Vec3<R>: Scalar<Real = R> + bytemuck::Pod,
 {
     let (n, nb) = (a.rows(), a.batches());
     assert!(
@@ -153,128 +310,15 @@ where
         active: DeviceBuffer::from_slice(&dev, &vec![1u32; nb]).map_err(e)?,
         iterations: DeviceBuffer::zeros(&dev, nb).map_err(e)?,
     };
-    let mut w = w;
-    // tolerances from ||b|| (one read-back)
-    let bb = {
-        let out = DeviceBuffer::<R>::zeros(&dev, nb).map_err(e)?;
-        dot(&dev, &w, b, b, &out, n, nb).map_err(e)?;
-        out.to_vec().map_err(e)?
+    let mut ops = DeviceCg {
+        dev,
+        a,
+        b,
+        x,
+        precond,
+        w,
+        n,
+        nb,
     };
-    let bnorm: Vec<R> = bb.iter().map(|&v| v.sqrt()).collect();
-    let cg = &params.cg;
-    let tol2: Vec<R> = bnorm
-        .iter()
-        .map(|&bn| {
-            let t = cg.tolerance * bn + cg.absolute_tolerance;
-            t * t
-        })
-        .collect();
-    w.tol2.upload(&tol2).map_err(e)?;
-    let (nn, nbi) = (Arg::Index(n as u64), Arg::Index(nb as u64));
-    let vgrid = launch::elementwise(n * nb);
-    let sgrid = launch::elementwise(nb);
-    let pair_parts = Arg::Index(parts as u64);
-
-    // r = b - A x, z = P^-1 r, (r.z, r.r), p = z (beta from (r.z)_old = 1 on p = 0)
-    a.spmv(x, &mut w.q).map_err(e)?;
-    run::<R>(
-        &dev,
-        "gpumat_cg_residual_vec3",
-        vgrid,
-        &[w.r.arg(), b.arg(), w.q.arg(), nn, nbi],
-    )
-    .map_err(e)?;
-    let rz_rr_and_beta = |w: &mut Work<R>| -> Result<(), Error> {
-        precond.apply(&w.r, &mut w.z)?;
-        let partial = [w.r.arg(), w.z.arg(), nn, w.pair_partials.arg()];
-        run::<R>(
-            &dev,
-            "gpumat_cg_dot2_partial_vec3",
-            launch::reduction(n, nb),
-            &partial,
-        )?;
-        let finish = [w.pair_partials.arg(), pair_parts, w.rz_rr.arg()];
-        run::<R>(
-            &dev,
-            "gpumat_reduce_sum_finish_pair",
-            launch::reduction_finish(nb),
-            &finish,
-        )?;
-        let beta = [
-            w.rz_rr.arg(),
-            w.rz_old.arg(),
-            w.tol2.arg(),
-            w.active.arg(),
-            w.iterations.arg(),
-            w.beta.arg(),
-            nbi,
-        ];
-        run::<R>(&dev, "gpumat_cg_beta", sgrid, &beta)?;
-        let update = [w.p.arg(), w.z.arg(), w.beta.arg(), w.active.arg(), nn, nbi];
-        run::<R>(&dev, "gpumat_cg_update_p_vec3", vgrid, &update)
-    };
-    rz_rr_and_beta(&mut w).map_err(e)?;
-
-    let check_every = params.check_every.max(1);
-    let mut it = 0;
-    loop {
-        // the check (module docs): every `check_every` iterations and at the limit
-        if it % check_every == 0 || it == cg.max_iterations {
-            let active = w.active.to_vec().map_err(e)?;
-            let rz_rr = w.rz_rr.to_vec().map_err(e)?;
-            let pq = w.pq.to_vec().map_err(e)?;
-            for bi in 0..nb {
-                if !rz_rr[bi][1].is_finite() || !rz_rr[bi][0].is_finite() || !pq[bi].is_finite() {
-                    return Err(CgError::NonFinite {
-                        batch: bi,
-                        iteration: it,
-                    });
-                }
-                if it > 0 && active[bi] != 0 && pq[bi] <= R::ZERO {
-                    return Err(CgError::NotPositiveDefinite {
-                        batch: bi,
-                        iteration: it,
-                        curvature: pq[bi],
-                    });
-                }
-            }
-            if active.iter().all(|&f| f == 0) || it == cg.max_iterations {
-                break;
-            }
-        }
-        a.spmv(&w.p, &mut w.q).map_err(e)?;
-        dot(&dev, &w, &w.p, &w.q, &w.pq, n, nb).map_err(e)?;
-        let alpha = [w.rz_rr.arg(), w.pq.arg(), w.active.arg(), w.alpha.arg(), nbi];
-        run::<R>(&dev, "gpumat_cg_alpha", sgrid, &alpha).map_err(e)?;
-        let xr = [
-            x.arg(),
-            w.r.arg(),
-            w.p.arg(),
-            w.q.arg(),
-            w.alpha.arg(),
-            w.active.arg(),
-            nn,
-            nbi,
-        ];
-        run::<R>(&dev, "gpumat_cg_update_xr_vec3", vgrid, &xr).map_err(e)?;
-        rz_rr_and_beta(&mut w).map_err(e)?;
-        it += 1;
-    }
-    let rz_rr = w.rz_rr.to_vec().map_err(e)?;
-    let iterations = w.iterations.to_vec().map_err(e)?;
-    let mut info = CgInfo {
-        iterations: iterations.iter().map(|&k| k.saturating_sub(1) as usize).collect(),
-        residual: vec![R::ZERO; nb],
-        converged: vec![false; nb],
-    };
-    for bi in 0..nb {
-        let scale = if bnorm[bi] > R::ZERO { bnorm[bi] } else { R::ONE };
-        info.residual[bi] = rz_rr[bi][1].sqrt() / scale;
-        info.converged[bi] = rz_rr[bi][1] <= tol2[bi];
-    }
-    if info.converged.iter().all(|&c| c) {
-        Ok(info)
-    } else {
-        Err(CgError::NoConvergence { info })
-    }
+    run_cg(&mut ops, &params.cg, params.check_every)
 }

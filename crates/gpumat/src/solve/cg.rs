@@ -92,9 +92,224 @@ pub enum CgError<R: Real> {
     Device(crate::error::Error),
 }
 
+/// The per-batch state of a CG run, as [`CgOps::state`] reads it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CgState<R> {
+    /// batches still iterating
+    pub active: Vec<bool>,
+    /// `r . r`
+    pub rr: Vec<R>,
+    /// `r . z`
+    pub rz: Vec<R>,
+    /// `p . A p` of the last iteration (0 before the first)
+    pub pq: Vec<R>,
+    /// steps taken
+    pub iterations: Vec<usize>,
+}
+
+/// The operations of the batched CG on one backend; the algorithm ([`run_cg`]) is written once
+/// over them (architecture principle 2). The vectors and per-batch scalars live where the
+/// backend keeps them: the host's are [`Matrix`] values and small vectors ([`cg`]), a device's
+/// stay on the device ([`crate::device::device_cg`]).
+pub trait CgOps<T: Scalar> {
+    /// `||b_b||` per batch.
+    fn b_norms(&mut self) -> Result<Vec<T::Real>, CgError<T::Real>>;
+    /// `r = b - A x`, `z = P^-1 r`, `p = z`, `(r.z, r.r)`; a batch with `||r|| <= target` does
+    /// not start.
+    fn start(&mut self, target: &[T::Real]) -> Result<(), CgError<T::Real>>;
+    /// One iteration of every running batch (iteration `it`, for errors): `q = A p`,
+    /// `alpha = (r.z) / (p.q)`, `x += alpha p`, `r -= alpha q`, `z = P^-1 r`,
+    /// `beta = (r.z)_new / (r.z)`, `p = z + beta p`; a batch with `||r|| <= target` stops.
+    fn iterate(&mut self, it: usize) -> Result<(), CgError<T::Real>>;
+    /// The per-batch state (on a device: a read-back).
+    fn state(&mut self) -> Result<CgState<T::Real>, CgError<T::Real>>;
+}
+
+/// The batched preconditioned CG over `ops` (thesis Alg. 4.1, module docs), reading the
+/// per-batch state every `check_every` iterations (and at the limit): the failure checks and
+/// the stop when no batch runs. A stopped batch takes no step, so `check_every` changes the
+/// time spent, not the result.
+pub fn run_cg<T: Scalar, O: CgOps<T> + ?Sized>(
+    ops: &mut O,
+    params: &CgParams<T::Real>,
+    check_every: usize,
+) -> Result<CgInfo<T::Real>, CgError<T::Real>> {
+    let zero = T::Real::ZERO;
+    let bnorm = ops.b_norms()?;
+    let target: Vec<T::Real> = bnorm
+        .iter()
+        .map(|&bn| params.tolerance * bn + params.absolute_tolerance)
+        .collect();
+    let scale: Vec<T::Real> = bnorm
+        .iter()
+        .map(|&bn| if bn > zero { bn } else { T::Real::ONE })
+        .collect();
+    ops.start(&target)?;
+    let check_every = check_every.max(1);
+    let mut it = 0;
+    let state = loop {
+        if it % check_every == 0 || it == params.max_iterations {
+            let st = ops.state()?;
+            let finite = num_traits::Float::is_finite;
+            for bi in 0..st.active.len() {
+                if !finite(st.rr[bi]) || !finite(st.rz[bi]) || (st.active[bi] && !finite(st.pq[bi])) {
+                    return Err(CgError::NonFinite {
+                        batch: bi,
+                        iteration: it,
+                    });
+                }
+                if it > 0 && st.active[bi] && st.pq[bi] <= zero {
+                    return Err(CgError::NotPositiveDefinite {
+                        batch: bi,
+                        iteration: it,
+                        curvature: st.pq[bi],
+                    });
+                }
+            }
+            if st.active.iter().all(|&a| !a) || it == params.max_iterations {
+                break st;
+            }
+        }
+        ops.iterate(it)?;
+        it += 1;
+    };
+    let info = CgInfo {
+        residual: state
+            .rr
+            .iter()
+            .zip(&scale)
+            .map(|(&rr, &s)| num_traits::Float::sqrt(rr) / s)
+            .collect(),
+        converged: state.active.iter().map(|&a| !a).collect(),
+        iterations: state.iterations,
+    };
+    if info.converged.iter().all(|&c| c) {
+        Ok(info)
+    } else {
+        Err(CgError::NoConvergence { info })
+    }
+}
+
+/// The host's [`CgOps`]: `Matrix` vectors, any [`LinearOperator`] and [`Preconditioner`].
+struct HostCg<'a, T: Scalar, A: ?Sized, P: ?Sized> {
+    a: &'a A,
+    b: &'a Matrix<T>,
+    x: &'a mut Matrix<T>,
+    precond: &'a P,
+    r: Matrix<T>,
+    z: Matrix<T>,
+    p: Matrix<T>,
+    q: Matrix<T>,
+    target: Vec<T::Real>,
+    rz: Vec<T::Real>,
+    rr: Vec<T::Real>,
+    pq: Vec<T::Real>,
+    active: Vec<bool>,
+    iterations: Vec<usize>,
+    alpha: Matrix<T::Real>,
+    beta: Matrix<T::Real>,
+}
+
+impl<T, A, P> HostCg<'_, T, A, P>
+where
+    T: Scalar,
+    T::Real: ScalarMul<T, Output = T>,
+    A: LinearOperator<T> + ?Sized,
+    P: Preconditioner<T> + ?Sized,
+{
+    /// `rr` from `r`, and every running batch whose `||r|| <= target` stops.
+    fn residual_norms(&mut self) {
+        self.rr = self.r.ex().squared_norm_over(Axes::ROWS).into_vec();
+        for bi in 0..self.active.len() {
+            if self.active[bi] && num_traits::Float::sqrt(self.rr[bi]) <= self.target[bi] {
+                self.active[bi] = false;
+            }
+        }
+    }
+}
+
+impl<T, A, P> CgOps<T> for HostCg<'_, T, A, P>
+where
+    T: Scalar,
+    T::Real: ScalarMul<T, Output = T>,
+    A: LinearOperator<T> + ?Sized,
+    P: Preconditioner<T> + ?Sized,
+{
+    fn b_norms(&mut self) -> Result<Vec<T::Real>, CgError<T::Real>> {
+        Ok(self.b.ex().norm_over(Axes::ROWS).into_vec())
+    }
+    fn start(&mut self, target: &[T::Real]) -> Result<(), CgError<T::Real>> {
+        self.target = target.to_vec();
+        self.a.apply(self.x, &mut self.q);
+        self.r.assign(self.b - &self.q);
+        self.precond.apply(&self.r, &mut self.z);
+        self.p = self.z.clone();
+        self.rz = self.r.ex().dot_over(self.z.ex(), Axes::ROWS).into_vec();
+        self.residual_norms();
+        Ok(())
+    }
+    fn iterate(&mut self, it: usize) -> Result<(), CgError<T::Real>> {
+        let zero = T::Real::ZERO;
+        self.a.apply(&self.p, &mut self.q);
+        self.pq = self.p.ex().dot_over(self.q.ex(), Axes::ROWS).into_vec();
+        for bi in 0..self.active.len() {
+            let step = if !self.active[bi] {
+                zero
+            } else {
+                let c = self.pq[bi];
+                if !num_traits::Float::is_finite(c) {
+                    return Err(CgError::NonFinite {
+                        batch: bi,
+                        iteration: it,
+                    });
+                }
+                if c <= zero {
+                    return Err(CgError::NotPositiveDefinite {
+                        batch: bi,
+                        iteration: it,
+                        curvature: c,
+                    });
+                }
+                self.iterations[bi] += 1;
+                self.rz[bi] / c
+            };
+            self.alpha.set(0, 0, bi, step);
+        }
+        let (alpha, p, q) = (&self.alpha, &self.p, &self.q);
+        self.x.assign_with(|x| x + alpha.ex().cwise_mul(p.ex()));
+        self.r.assign_with(|r| r - alpha.ex().cwise_mul(q.ex()));
+        self.precond.apply(&self.r, &mut self.z);
+        let rz_new = self.r.ex().dot_over(self.z.ex(), Axes::ROWS).into_vec();
+        // beta of the batches that ran this iteration (a batch stops after its update of p)
+        for bi in 0..self.active.len() {
+            let bt = if !self.active[bi] || self.rz[bi] == zero {
+                zero
+            } else {
+                rz_new[bi] / self.rz[bi]
+            };
+            self.beta.set(0, 0, bi, bt);
+        }
+        self.rz = rz_new;
+        let (beta, z) = (&self.beta, &self.z);
+        self.p.assign_with(|p| z.ex() + beta.ex().cwise_mul(p));
+        self.residual_norms();
+        Ok(())
+    }
+    fn state(&mut self) -> Result<CgState<T::Real>, CgError<T::Real>> {
+        Ok(CgState {
+            active: self.active.clone(),
+            rr: self.rr.clone(),
+            rz: self.rz.clone(),
+            pq: self.pq.clone(),
+            iterations: self.iterations.clone(),
+        })
+    }
+}
+
 /// Solves `A x = b` for every batch, starting from the given `x` (warm start).
 ///
-/// `b` and `x` are `n x 1 x batches`. Returns per-batch iterations and residuals.
+/// `b` and `x` are `n x 1 x batches`. Returns per-batch iterations and residuals. The
+/// algorithm is [`run_cg`] over the host's operations, checking the state every iteration.
 ///
 /// ```
 /// use gpumat::{cg, CgParams, Jacobi, Matrix, SparseMatrix};
@@ -128,101 +343,23 @@ where
     assert_eq!(x.shape(), shape, "gpumat::cg: x and b differ in shape");
     let nb = shape.batches;
     let zero = T::Real::ZERO;
-
-    let mut r = Matrix::zeros_shape(shape);
-    let mut z = Matrix::zeros_shape(shape);
-    let mut q = Matrix::zeros_shape(shape);
-    a.apply(x, &mut q);
-    r.assign(b - &q);
-    precond.apply(&r, &mut z);
-    let mut p = z.clone();
-
-    let bnorm = b.ex().norm_over(Axes::ROWS);
-    let target: Vec<T::Real> = bnorm
-        .as_slice()
-        .iter()
-        .map(|&bn| params.tolerance * bn + params.absolute_tolerance)
-        .collect();
-    let scale: Vec<T::Real> = bnorm
-        .as_slice()
-        .iter()
-        .map(|&bn| if bn > zero { bn } else { T::Real::ONE })
-        .collect();
-    let mut rz = r.ex().dot_over(z.ex(), Axes::ROWS).into_vec();
-    let mut rnorm = r.ex().norm_over(Axes::ROWS).into_vec();
-    let mut info = CgInfo {
+    let mut ops = HostCg {
+        a,
+        b,
+        x,
+        precond,
+        r: Matrix::zeros_shape(shape),
+        z: Matrix::zeros_shape(shape),
+        p: Matrix::zeros_shape(shape),
+        q: Matrix::zeros_shape(shape),
+        target: Vec::new(),
+        rz: vec![zero; nb],
+        rr: vec![zero; nb],
+        pq: vec![zero; nb],
+        active: vec![true; nb],
         iterations: vec![0; nb],
-        residual: vec![zero; nb],
-        converged: vec![false; nb],
+        alpha: Matrix::zeros(1, 1, nb),
+        beta: Matrix::zeros(1, 1, nb),
     };
-    let mut alpha = Matrix::<T::Real>::zeros(1, 1, nb);
-    let mut beta = Matrix::<T::Real>::zeros(1, 1, nb);
-
-    for it in 0..=params.max_iterations {
-        let mut active = false;
-        for bi in 0..nb {
-            if !num_traits::Float::is_finite(rnorm[bi]) || !num_traits::Float::is_finite(rz[bi]) {
-                return Err(CgError::NonFinite {
-                    batch: bi,
-                    iteration: it,
-                });
-            }
-            info.residual[bi] = rnorm[bi] / scale[bi];
-            if !info.converged[bi] {
-                if rnorm[bi] <= target[bi] {
-                    info.converged[bi] = true;
-                } else {
-                    active = true;
-                }
-            }
-        }
-        if !active || it == params.max_iterations {
-            break;
-        }
-        a.apply(&p, &mut q);
-        let pq = p.ex().dot_over(q.ex(), Axes::ROWS);
-        for bi in 0..nb {
-            let step = if info.converged[bi] {
-                zero
-            } else {
-                let c = pq.as_slice()[bi];
-                if !num_traits::Float::is_finite(c) {
-                    return Err(CgError::NonFinite {
-                        batch: bi,
-                        iteration: it,
-                    });
-                }
-                if c <= zero {
-                    return Err(CgError::NotPositiveDefinite {
-                        batch: bi,
-                        iteration: it,
-                        curvature: c,
-                    });
-                }
-                info.iterations[bi] += 1;
-                rz[bi] / c
-            };
-            alpha.set(0, 0, bi, step);
-        }
-        x.assign_with(|x| x + alpha.ex().cwise_mul(p.ex()));
-        r.assign_with(|r| r - alpha.ex().cwise_mul(q.ex()));
-        precond.apply(&r, &mut z);
-        let rz_new = r.ex().dot_over(z.ex(), Axes::ROWS).into_vec();
-        rnorm = r.ex().norm_over(Axes::ROWS).into_vec();
-        for bi in 0..nb {
-            let bt = if info.converged[bi] || rz[bi] == zero {
-                zero
-            } else {
-                rz_new[bi] / rz[bi]
-            };
-            beta.set(0, 0, bi, bt);
-        }
-        rz = rz_new;
-        p.assign_with(|p| z.ex() + beta.ex().cwise_mul(p));
-    }
-    if info.converged.iter().all(|&c| c) {
-        Ok(info)
-    } else {
-        Err(CgError::NoConvergence { info })
-    }
+    run_cg(&mut ops, params, 1)
 }

@@ -10,7 +10,7 @@ mod ic0;
 mod ordering;
 mod precond;
 
-pub use cg::{cg, CgError, CgInfo, CgParams};
+pub use cg::{cg, run_cg, CgError, CgInfo, CgOps, CgParams, CgState};
 pub use cholesky::SparseCholesky;
 pub use dense::{invert_small, SmallCholesky};
 pub use ic0::{BlockIc0, Ic0Params};
