@@ -9,6 +9,7 @@ use super::{floor, residuals, score, DiagnoseParams, Progress, Setup};
 use crate::cost_mesh::SurfaceCost;
 use crate::observations::Observations;
 use crate::Error;
+use rayon::prelude::*;
 
 /// A candidate whose prediction is reliable (see [`Search::candidates`]) and whose
 /// predicted rms is more than this factor above a confirmed candidate's rms is not refitted.
@@ -35,11 +36,13 @@ impl Search<'_> {
         total: usize,
     ) -> Vec<Candidate> {
         let (setup, base, off, settings) = (self.setup, self.base, self.off, self.settings);
-        let mut candidates: Vec<Candidate> = Vec::new();
-        for (i, e) in off.iter().enumerate() {
-            progress(&format!("score {}", e.name()), 2 + i, total);
-            candidates.push(score::probe(setup, base, e.as_ref(), data));
-        }
+        // the probes are independent (each its own problem, deterministic whatever the thread
+        // count): they run side by side, in the effects' order in the result
+        progress(&format!("score {} effects", off.len()), 2, total);
+        let mut candidates: Vec<Candidate> = off
+            .par_iter()
+            .map(|e| score::probe(setup, base, e.as_ref(), data))
+            .collect();
         let n = self.points.max(1) as f64;
         let rank = |c: &Candidate| c.score - c.params.len() as f64 * n.ln();
         candidates.sort_by(|a, b| rank(b).total_cmp(&rank(a)).then(a.effect.cmp(&b.effect)));
