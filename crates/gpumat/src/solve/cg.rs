@@ -9,6 +9,11 @@
 //! Failures are values: a batch whose curvature `p . A p` is not positive gives
 //! [`CgError::NotPositiveDefinite`]; a non-finite residual gives [`CgError::NonFinite`];
 //! running out of iterations gives [`CgError::NoConvergence`] with the [`CgInfo`].
+//!
+//! The algorithm is written once, [`run_cg`], over the operations of a backend ([`CgOps`]):
+//! the host's ([`cg`]: `Matrix` vectors, any [`LinearOperator`] and [`Preconditioner`], the
+//! state read every iteration) and a device's ([`crate::device::device_cg`]: catalogue
+//! kernels, the state read back every few iterations).
 
 use super::{LinearOperator, Preconditioner};
 use crate::expr::Axes;
