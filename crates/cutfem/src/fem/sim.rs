@@ -487,13 +487,6 @@ impl Simulation {
         self.linear.set_device(device);
     }
 
-    /// The next `n` linear solves are with the current matrix ([`LinearSolver::expect_solves`]).
-    ///
-    /// [`LinearSolver::expect_solves`]: crate::fem::LinearSolver::expect_solves
-    pub fn expect_solves(&mut self, n: usize) {
-        self.linear.expect_solves(n);
-    }
-
     /// The device the linear solves run on, by name (`None`: the host).
     pub fn device_name(&self) -> Option<String> {
         self.linear.device_name()

@@ -34,11 +34,10 @@
 //! falls back to CG from the direct solution). Factors above [`MAX_REUSED_FACTOR`] entries are
 //! not made. On the 1.05 x 0.22 x 0.22 bar at resolution 20 (about 3 300 unknowns; IC(0)-CG
 //! needed about 30 iterations per solve) a diagnosis' evaluations got several times faster
-//! (docs/effects.md, "Speed"). The solves within one step count only when at least
-//! [`MIN_SOLVES_AHEAD`] are announced: a corotated model's matrix changes every step, and its
-//! tangent-linear pass solves with each step's matrix once per fitted parameter; factoring it
-//! there for two solves made the swinging torus' fit (Table D, 2 parameters) slower, 69 s
-//! against 46 s with CG.
+//! (docs/effects.md, "Speed"). The solves within one step do not count: a corotated model's
+//! matrix changes every step, and its tangent-linear pass solves with each step's matrix once
+//! per fitted parameter; factoring it there for those few solves made the swinging torus' fit
+//! (Table D, 2 parameters) slower, 69 s against 44 s with CG.
 //!
 //! [`StepInfo`](super::StepInfo) counts the factorizations of a step and their seconds.
 
@@ -159,8 +158,6 @@ pub struct LinearSolver {
     last_key_step: u64,
     /// time steps begun ([`LinearSolver::new_step`])
     step: u64,
-    /// solves announced with the coming matrix ([`LinearSolver::expect_solves`])
-    ahead: usize,
     /// the direct factor of a repeated matrix and its fingerprint
     repeated: Option<(u64, SparseCholesky<Mat3<f64>>)>,
     /// a pattern whose factor exceeded [`MAX_REUSED_FACTOR`]: not analysed again
@@ -168,13 +165,6 @@ pub struct LinearSolver {
     /// solves on a device (`[numerics] backend = "cuda"`, [`super::device_solve`])
     device: Option<super::device_solve::DeviceSolver>,
 }
-
-/// A matrix met again within its time step is factored when at least this many solves with it
-/// are announced ([`LinearSolver::expect_solves`]): measured, two tangent solves per step of the
-/// corotated torus (Table D) were faster by CG (fit 46 s against 69 s with a factor per step),
-/// while the demo's refits with more parameters were faster with the factor (`softbody demo`
-/// 119 s against 133 s).
-pub const MIN_SOLVES_AHEAD: usize = 3;
 
 /// The most entries of a factor made for a repeated matrix (8 bytes each: 200 MB).
 pub const MAX_REUSED_FACTOR: usize = 25_000_000;
@@ -219,13 +209,6 @@ impl LinearSolver {
     /// (module docs).
     pub fn new_step(&mut self) {
         self.step += 1;
-    }
-
-    /// The next `n` solves are with one matrix (the tangent-linear pass' directions): a matrix
-    /// met again within its time step is factored when at least [`MIN_SOLVES_AHEAD`] are
-    /// announced (module docs).
-    pub fn expect_solves(&mut self, n: usize) {
-        self.ahead = n;
     }
 
     /// Numeric factorizations done so far.
@@ -330,10 +313,7 @@ impl LinearSolver {
         let key = fingerprint(a);
         // met again at a later time step than the run of solves with it began (the tangent
         // passes' solves with the step's own matrix do not count: module docs)
-        let ahead = std::mem::take(&mut self.ahead);
-        self.ahead = ahead.saturating_sub(1);
-        let repeat =
-            self.last_key == Some(key) && (self.last_key_step != self.step || ahead >= MIN_SOLVES_AHEAD);
+        let repeat = self.last_key == Some(key) && self.last_key_step != self.step;
         if self.last_key != Some(key) {
             self.last_key = Some(key);
             self.last_key_step = self.step;
