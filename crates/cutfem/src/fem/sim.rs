@@ -312,7 +312,6 @@ impl Simulation {
     /// solve and the velocity update (eq. 2.6.2-2.6.4).
     pub fn substep(&mut self) -> Result<StepInfo, Error> {
         self.contact_at = None;
-        self.linear.new_step();
         let mut info = self.assemble_system_with(false);
         let dt = self.model.dt;
         let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);

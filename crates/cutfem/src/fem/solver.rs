@@ -21,23 +21,18 @@
 //!   but each costs a triangular solve of a factor with 8e7 entries and the factorization
 //!   costs seconds, so it is not faster than block-Jacobi on this machine.
 //!
-//! **A matrix that outlives its time step is factored and solved directly**
-//! ([`SolverSettings::reuse_factor`], scene key `[numerics] reuse_factor`, on by default). A
-//! linear model without contact has the same Newmark matrix `A = M/(theta dt)^2 ... + K` (eq.
-//! 2.6.2) at every step, and the adjoint (eq. 5.5.x, `A` symmetric) and tangent-linear passes
-//! solve with it again. When the solver sees the values of the previous solve's matrix again
-//! (a 64-bit fingerprint of the pattern and the values' bits) at a later time step than the one
-//! where it first met them ([`LinearSolver::new_step`], called by every integrator step), it
-//! factors it (sparse Cholesky, nested dissection, the symbolic
+//! **A matrix met twice in a row is factored and solved directly** ([`SolverSettings::reuse_factor`],
+//! scene key `[numerics] reuse_factor`, on by default). A linear model without contact has the
+//! same Newmark matrix `A = M/(theta dt)^2 ... + K` (eq. 2.6.2) at every step, and the adjoint
+//! (eq. 5.5.x, `A` symmetric) and tangent-linear passes solve with it again. When the solver
+//! sees the values of the previous solve's matrix again (a 64-bit fingerprint of the pattern
+//! and the values' bits), it factors it (sparse Cholesky, nested dissection, the symbolic
 //! analysis kept while the pattern stays) and solves every further system with that matrix by
 //! two triangular solves, checking the relative residual against the CG tolerance (a mismatch
 //! falls back to CG from the direct solution). Factors above [`MAX_REUSED_FACTOR`] entries are
 //! not made. On the 1.05 x 0.22 x 0.22 bar at resolution 20 (about 3 300 unknowns; IC(0)-CG
 //! needed about 30 iterations per solve) a diagnosis' evaluations got several times faster
-//! (docs/effects.md, "Speed"). The solves within one step do not count: a corotated model's
-//! matrix changes every step, and its tangent-linear pass solves with each step's matrix once
-//! per fitted parameter; factoring it there for those few solves made the swinging torus' fit
-//! (Table D, 2 parameters) slower, 69 s against 44 s with CG.
+//! (docs/effects.md, "Speed").
 //!
 //! [`StepInfo`](super::StepInfo) counts the factorizations of a step and their seconds.
 
@@ -154,10 +149,6 @@ pub struct LinearSolver {
     factorizations: usize,
     /// the fingerprint of the previous solve's matrix
     last_key: Option<u64>,
-    /// the time step at which the run of solves with the `last_key` matrix began
-    last_key_step: u64,
-    /// time steps begun ([`LinearSolver::new_step`])
-    step: u64,
     /// the direct factor of a repeated matrix and its fingerprint
     repeated: Option<(u64, SparseCholesky<Mat3<f64>>)>,
     /// a pattern whose factor exceeded [`MAX_REUSED_FACTOR`]: not analysed again
@@ -203,12 +194,6 @@ impl LinearSolver {
     /// The device the solves run on, by name (`None`: the host).
     pub fn device_name(&self) -> Option<String> {
         self.device.as_ref().map(|d| d.name())
-    }
-
-    /// A time step begins: a matrix counts as repeated when it is met again at a later step
-    /// (module docs).
-    pub fn new_step(&mut self) {
-        self.step += 1;
     }
 
     /// Numeric factorizations done so far.
@@ -311,13 +296,8 @@ impl LinearSolver {
         info: &mut SolveInfo,
     ) -> Result<bool, Error> {
         let key = fingerprint(a);
-        // met again at a later time step than the run of solves with it began (the tangent
-        // passes' solves with the step's own matrix do not count: module docs)
-        let repeat = self.last_key == Some(key) && self.last_key_step != self.step;
-        if self.last_key != Some(key) {
-            self.last_key = Some(key);
-            self.last_key_step = self.step;
-        }
+        let repeat = self.last_key == Some(key);
+        self.last_key = Some(key);
         let known = self
             .repeated
             .as_ref()
