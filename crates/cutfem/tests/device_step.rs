@@ -5,18 +5,15 @@
 //! within 5% (plus one); on a real GPU (feature `cuda`) the same comparison runs; the scene key
 //! parses, and a build or machine without CUDA says so in one line naming the scene.
 
+mod fem_common;
+
 use cutfem::fem::{ComputeBackend, Grid, Model, Preconditioner, Simulation, SolverSettings};
 use cutfem::scene::Scene;
+use fem_common::{thesis_cuboid_grid, SMALL_BOX_SCENE};
 use gpumat::device::Device;
 use gpumat::{Matrix, Vec3};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// The cuboid of Tables B.5/B.6 at resolution `r`, held at one end or on the ground.
-fn cuboid(r: f64, ground: bool) -> (Grid, Model) {
-    let (shape, model) = cutfem::fem::model::thesis_cuboid(ground);
-    (Grid::new(shape.to_sdf(2.0 * r, 2).unwrap()).unwrap(), model)
-}
 
 fn run(
     grid: &Grid,
@@ -59,7 +56,7 @@ fn emulated() -> Option<Arc<dyn Device>> {
 
 fn compare(device: Arc<dyn Device>) {
     for ground in [false, true] {
-        let (grid, model) = cuboid(5.0, ground);
+        let (grid, model) = thesis_cuboid_grid(5.0, ground);
         let steps = 4;
         let (u_cpu, it_cpu) = run(&grid, &model, None, steps);
         let (u_dev, it_dev) = run(&grid, &model, Some(device.clone()), steps);
@@ -101,13 +98,7 @@ fn cuboid_steps_on_a_gpu_match_the_cpu() {
 
 #[test]
 fn scene_backend_key() {
-    let base = r#"
-[body]
-shape = { kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }
-[material]
-young = 2000.0
-poisson = 0.3
-"#;
+    let base = SMALL_BOX_SCENE;
     let path = Path::new("scene.toml");
     let scene = Scene::parse(base, path).unwrap();
     assert_eq!(scene.numerics.backend, ComputeBackend::Cpu);

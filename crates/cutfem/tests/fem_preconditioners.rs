@@ -4,17 +4,14 @@
 //! rest-state factor is made once and redone by the refactor rule, when the pattern changes
 //! and on a reset; the scene key parses and rejects unknown names in one line.
 
+mod fem_common;
+
 use cutfem::fem::solver::{solve, LinearSolver};
 use cutfem::fem::{Grid, Model, Preconditioner, Simulation, SolverSettings};
 use cutfem::scene::Scene;
+use fem_common::{thesis_cuboid_grid, SMALL_BOX_SCENE};
 use gpumat::{Matrix, Vec3};
 use std::path::Path;
-
-/// The cuboid of Tables B.5/B.6 at resolution `r` (cells of size 1/(2r)).
-fn cuboid(r: f64, ground: bool) -> (Grid, Model) {
-    let (shape, model) = cutfem::fem::model::thesis_cuboid(ground);
-    (Grid::new(shape.to_sdf(2.0 * r, 2).unwrap()).unwrap(), model)
-}
 
 struct Run {
     u: Matrix<Vec3<f64>>,
@@ -61,7 +58,7 @@ fn relative_difference(a: &Matrix<Vec3<f64>>, b: &Matrix<Vec3<f64>>) -> f64 {
 fn preconditioners_agree_with_block_jacobi_in_fewer_iterations() {
     let steps = 8;
     for ground in [false, true] {
-        let (grid, model) = cuboid(5.0, ground);
+        let (grid, model) = thesis_cuboid_grid(5.0, ground);
         let bj = run(&grid, &model, settings(Preconditioner::BlockJacobi), steps);
         assert_eq!(bj.total_factorizations, 0);
         assert!(bj.factorizations.iter().all(|&f| f == 0));
@@ -102,7 +99,7 @@ fn preconditioners_agree_with_block_jacobi_in_fewer_iterations() {
 /// a threshold of 0 every step after the first refactors (and then converges at once).
 #[test]
 fn rest_cholesky_refactor_rule() {
-    let (grid, model) = cuboid(5.0, false);
+    let (grid, model) = thesis_cuboid_grid(5.0, false);
     let mut s = settings(Preconditioner::RestCholesky);
     s.refactor_iterations = 0;
     let r = run(&grid, &model, s, 5);
@@ -124,7 +121,7 @@ fn rest_cholesky_refactor_rule() {
 /// `solve` and the direct mode give the same solution.
 #[test]
 fn linear_solver_state_and_stateless_solve() {
-    let (grid, model) = cuboid(4.0, false);
+    let (grid, model) = thesis_cuboid_grid(4.0, false);
     let mut sim = Simulation::new(grid, model).unwrap();
     sim.step().unwrap();
     let a = sim.newmark_matrix().clone();
@@ -139,7 +136,7 @@ fn linear_solver_state_and_stateless_solve() {
     let mut x2 = Matrix::zeros_shape(b.shape());
     assert_eq!(lin.solve(&a, &b, &mut x2, &s).unwrap().factorizations, 0);
     // another pattern (another grid): analysed again, and again on the way back
-    let (grid3, model3) = cuboid(3.0, false);
+    let (grid3, model3) = thesis_cuboid_grid(3.0, false);
     let mut other = Simulation::new(grid3, model3).unwrap();
     other.step().unwrap();
     let a3 = other.newmark_matrix();
@@ -175,13 +172,7 @@ fn linear_solver_state_and_stateless_solve() {
 
 #[test]
 fn scene_preconditioner_key() {
-    let base = r#"
-[body]
-shape = { kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }
-[material]
-young = 2000.0
-poisson = 0.3
-"#;
+    let base = SMALL_BOX_SCENE;
     let path = Path::new("scene.toml");
     let scene = Scene::parse(base, path).unwrap();
     assert_eq!(scene.numerics.preconditioner, Preconditioner::BlockIc0);

@@ -12,7 +12,8 @@ mod emu;
 
 use emu::rnd;
 use gpumat::device::{
-    device_cg, Device, DeviceBlockJacobi, DeviceBsr3, DeviceBuffer, DeviceCgParams, DevicePattern,
+    device_cg, device_cg_in, Device, DeviceBlockJacobi, DeviceBsr3, DeviceBuffer, DeviceCgParams,
+    DeviceCgWork, DevicePattern,
 };
 use gpumat::{cg, BlockJacobi, CgError, CgInfo, CgParams, Error, Mat3, Matrix, SparseMatrix, Vec3};
 use std::sync::{Arc, OnceLock};
@@ -405,6 +406,56 @@ fn cg_reports_failures(be: &dyn Backend) {
     match be.cg(&a, &b, &mut x, &few) {
         Err(CgError::NoConvergence { info }) => assert_eq!(info.iterations[0], 3, "{info:?}"),
         other => panic!("3 iterations: {other:?}"),
+    }
+}
+
+/// A device CG's buffers kept between solves ([`DeviceCgWork`]) give each solve the bits of a
+/// solve in fresh buffers: solves of two systems (another size, then the first again) in one
+/// set of buffers against each in its own.
+fn reused_work_gives_fresh_bits(be: &OnDevice) {
+    let params = DeviceCgParams {
+        cg: CgParams::default(),
+        check_every: 3,
+    };
+    let systems = [(40, 3, 11), (25, 2, 12), (40, 3, 13)];
+    let solve = |(n, nb, seed): (usize, usize, u64), work: Option<&mut DeviceCgWork<f64>>| {
+        let a = spd(n, nb, seed);
+        let da = be.matrix(&a);
+        let p = DeviceBlockJacobi::new(&da).expect("block-Jacobi");
+        let db = be.vector(&vec3s(n, nb, seed + 100));
+        let mut dx = be.vector(&Matrix::zeros(n, 1, nb));
+        let info = match work {
+            Some(w) => device_cg_in(w, &da, &db, &mut dx, &p, &params),
+            None => device_cg(&da, &db, &mut dx, &p, &params),
+        }
+        .expect("converges");
+        (dx.to_vec().unwrap(), info.iterations)
+    };
+    let mut work = DeviceCgWork::new(&be.0, 40, 3).unwrap();
+    for sys in systems {
+        let fresh = solve(sys, None);
+        let kept = solve(sys, Some(&mut work));
+        assert!(fresh.1.iter().all(|&k| k > 3), "{:?}", fresh.1);
+        assert_eq!(fresh.1, kept.1, "iterations, system {sys:?}");
+        let bits =
+            |v: &[Vec3<f64>]| -> Vec<u64> { v.iter().flat_map(|x| x.to_array()).map(f64::to_bits).collect() };
+        assert_eq!(bits(&fresh.0), bits(&kept.0), "solution, system {sys:?}");
+    }
+}
+
+#[test]
+fn emulated_reused_work() {
+    match emulated() {
+        Some(be) => reused_work_gives_fresh_bits(&be),
+        None => eprintln!("SKIPPED emulated reused work: no C++ compiler"),
+    }
+}
+
+#[test]
+fn cuda_reused_work() {
+    match gpu() {
+        Some(be) => reused_work_gives_fresh_bits(&be),
+        None => eprintln!("SKIPPED cuda reused work: no GPU"),
     }
 }
 

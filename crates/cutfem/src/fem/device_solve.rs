@@ -16,7 +16,8 @@
 //! [`crate::fem::Simulation::set_device`].
 
 use gpumat::device::{
-    device_cg, Device, DeviceBlockJacobi, DeviceBsr3, DeviceBuffer, DeviceCgParams, DevicePattern,
+    device_cg_in, Device, DeviceBlockJacobi, DeviceBsr3, DeviceBuffer, DeviceCgParams, DeviceCgWork,
+    DevicePattern,
 };
 use gpumat::{CgError, CgInfo, CgParams, Mat3, Matrix, SparseMatrix, Vec3};
 use std::sync::Arc;
@@ -67,6 +68,8 @@ pub struct DeviceSolver {
     device: Arc<dyn Device>,
     pattern: Option<Arc<DevicePattern>>,
     a: Option<DeviceBsr3<f64>>,
+    /// the CG's vectors, kept while the system's size stays
+    work: Option<DeviceCgWork<f64>>,
 }
 
 impl DeviceSolver {
@@ -76,6 +79,7 @@ impl DeviceSolver {
             device,
             pattern: None,
             a: None,
+            work: None,
         }
     }
 
@@ -114,7 +118,12 @@ impl DeviceSolver {
             cg: *cg,
             check_every: CHECK_EVERY,
         };
-        let out = device_cg(da, &db, &mut dx, &pre, &params);
+        let work = match self.work.take() {
+            Some(w) if w.fits(&self.device, da.rows(), da.batches()) => w,
+            _ => DeviceCgWork::new(&self.device, da.rows(), da.batches())?,
+        };
+        let work = self.work.insert(work);
+        let out = device_cg_in(work, da, &db, &mut dx, &pre, &params);
         if let Err(CgError::Device(e)) = out {
             return Err(e);
         }

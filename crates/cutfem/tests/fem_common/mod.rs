@@ -56,3 +56,19 @@ pub fn box_grid(center: [f64; 3], size: [f64; 3], h: f64) -> Grid {
 pub fn box_sim(center: [f64; 3], size: [f64; 3], h: f64, model: Model) -> Simulation {
     Simulation::new(box_grid(center, size, h), model).expect("valid simulation")
 }
+
+/// The cuboid of Tables B.5/B.6 at resolution `r` (cells of size 1/(2r)), held at one end or
+/// on the ground.
+pub fn thesis_cuboid_grid(r: f64, ground: bool) -> (Grid, Model) {
+    let (shape, model) = cutfem::fem::model::thesis_cuboid(ground);
+    (Grid::new(shape.to_sdf(2.0 * r, 2).unwrap()).unwrap(), model)
+}
+
+/// The smallest scene the `[numerics]` key tests extend: a box and its material.
+pub const SMALL_BOX_SCENE: &str = r#"
+[body]
+shape = { kind = "box", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }
+[material]
+young = 2000.0
+poisson = 0.3
+"#;

@@ -49,8 +49,12 @@ impl<R: DeviceReal> Default for DeviceCgParams<R> {
     }
 }
 
-/// The vectors and per-batch scalars of one solve.
-struct Work<R: DeviceReal> {
+/// The vectors and per-batch scalars of a solve on `n x batches` vectors: allocated once by
+/// [`DeviceCgWork::new`] and reused by every [`device_cg_in`] of that size (each solve resets
+/// what it reads).
+pub struct DeviceCgWork<R: DeviceReal> {
+    n: usize,
+    nb: usize,
     r: DeviceBuffer<Vec3<R>>,
     z: DeviceBuffer<Vec3<R>>,
     p: DeviceBuffer<Vec3<R>>,
@@ -65,6 +69,53 @@ struct Work<R: DeviceReal> {
     tol2: DeviceBuffer<R>,
     active: DeviceBuffer<u32>,
     iterations: DeviceBuffer<u32>,
+    /// `|b|` per batch
+    norms: DeviceBuffer<R>,
+}
+
+impl<R: DeviceReal> std::fmt::Debug for DeviceCgWork<R> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DeviceCgWork")
+            .field("n", &self.n)
+            .field("batches", &self.nb)
+            .finish()
+    }
+}
+
+impl<R: DeviceReal> DeviceCgWork<R>
+where
+    Vec3<R>: Scalar + bytemuck::Pod,
+{
+    /// Buffers for solves of `n` block rows and `batches` batches on `dev`.
+    pub fn new(dev: &Arc<dyn Device>, n: usize, batches: usize) -> Result<Self, Error> {
+        let nb = batches;
+        let vec = || DeviceBuffer::<Vec3<R>>::zeros(dev, n * nb);
+        let parts = launch::reduction_parts(n) as usize;
+        Ok(Self {
+            n,
+            nb,
+            r: vec()?,
+            z: vec()?,
+            p: vec()?,
+            q: vec()?,
+            partials: DeviceBuffer::zeros(dev, parts * nb)?,
+            pair_partials: DeviceBuffer::zeros(dev, parts * nb)?,
+            pq: DeviceBuffer::zeros(dev, nb)?,
+            rz_rr: DeviceBuffer::zeros(dev, nb)?,
+            rz_old: DeviceBuffer::zeros(dev, nb)?,
+            alpha: DeviceBuffer::zeros(dev, nb)?,
+            beta: DeviceBuffer::zeros(dev, nb)?,
+            tol2: DeviceBuffer::zeros(dev, nb)?,
+            active: DeviceBuffer::zeros(dev, nb)?,
+            iterations: DeviceBuffer::zeros(dev, nb)?,
+            norms: DeviceBuffer::zeros(dev, nb)?,
+        })
+    }
+
+    /// Whether these buffers fit solves of `n` block rows and `batches` batches on `dev`.
+    pub fn fits(&self, dev: &Arc<dyn Device>, n: usize, batches: usize) -> bool {
+        self.n == n && self.nb == batches && Arc::ptr_eq(self.r.device(), dev)
+    }
 }
 
 /// Launch helper: kernel `name` with the real type's suffix.
@@ -83,7 +134,7 @@ fn run<R: DeviceReal>(
 /// `out_b = x_b . y_b` (vectors of `n` per batch).
 fn dot<R: DeviceReal>(
     dev: &Arc<dyn Device>,
-    w: &Work<R>,
+    w: &DeviceCgWork<R>,
     x: &DeviceBuffer<Vec3<R>>,
     y: &DeviceBuffer<Vec3<R>>,
     out: &DeviceBuffer<R>,
@@ -117,7 +168,7 @@ struct DeviceCg<'a, R: DeviceReal> {
     b: &'a DeviceBuffer<Vec3<R>>,
     x: &'a mut DeviceBuffer<Vec3<R>>,
     precond: &'a DeviceBlockJacobi<R>,
-    w: Work<R>,
+    w: &'a mut DeviceCgWork<R>,
     n: usize,
     nb: usize,
 }
@@ -136,7 +187,7 @@ where
     /// `z = P^-1 r`, `(r.z, r.r)`, `beta` with each batch's stop test, `p = z + beta p`.
     fn precondition_and_turn(&mut self) -> Result<(), Error> {
         let (n, nb, nn, nbi) = (self.n, self.nb, self.nn(), self.nbi());
-        let (dev, w) = (&self.dev, &mut self.w);
+        let (dev, w) = (&self.dev, &mut *self.w);
         self.precond.apply(&w.r, &mut w.z)?;
         let parts = Arg::Index(launch::reduction_parts(n) as u64);
         let partial = [w.r.arg(), w.z.arg(), nn, w.pair_partials.arg()];
@@ -179,9 +230,9 @@ where
     Vec3<R>: Scalar<Real = R> + bytemuck::Pod,
 {
     fn b_norms(&mut self) -> Result<Vec<R>, CgError<R>> {
-        let out = DeviceBuffer::<R>::zeros(&self.dev, self.nb).map_err(CgError::Device)?;
-        dot(&self.dev, &self.w, self.b, self.b, &out, self.n, self.nb).map_err(CgError::Device)?;
-        Ok(out
+        let w = &*self.w;
+        dot(&self.dev, w, self.b, self.b, &w.norms, self.n, self.nb).map_err(CgError::Device)?;
+        Ok(w.norms
             .to_vec()
             .map_err(CgError::Device)?
             .iter()
@@ -192,6 +243,11 @@ where
         let tol2: Vec<R> = target.iter().map(|&t| t * t).collect();
         let e = CgError::Device;
         self.w.tol2.upload(&tol2).map_err(e)?;
+        // every batch active, (r.z)_old = 1, no iterations yet (the buffers may hold a
+        // previous solve's state)
+        self.w.rz_old.upload(&vec![R::ONE; self.nb]).map_err(e)?;
+        self.w.active.upload(&vec![1u32; self.nb]).map_err(e)?;
+        self.w.iterations.upload(&vec![0u32; self.nb]).map_err(e)?;
         // r = b - A x; z, (r.z, r.r), p = z (beta from (r.z)_old = 1 on p = 0; the first beta
         // launch counts one iteration, taken off in `state`)
         self.a.spmv(self.x, &mut self.w.q).map_err(e)?;
@@ -215,7 +271,7 @@ where
         let e = CgError::Device;
         let (n, nb, nn, nbi) = (self.n, self.nb, self.nn(), self.nbi());
         self.a.spmv(&self.w.p, &mut self.w.q).map_err(e)?;
-        let w = &self.w;
+        let w = &*self.w;
         dot(&self.dev, w, &w.p, &w.q, &w.pq, n, nb).map_err(e)?;
         let alpha = [w.rz_rr.arg(), w.pq.arg(), w.active.arg(), w.alpha.arg(), nbi];
         run::<R>(&self.dev, "gpumat_cg_alpha", launch::elementwise(nb), &alpha).map_err(e)?;
@@ -282,6 +338,24 @@ where
     Mat3<R>: Scalar + bytemuck::Pod,
     Vec3<R>: Scalar<Real = R> + bytemuck::Pod,
 {
+    let mut work = DeviceCgWork::new(b.device(), a.rows(), a.batches()).map_err(CgError::Device)?;
+    device_cg_in(&mut work, a, b, x, precond, params)
+}
+
+/// [`device_cg`] in buffers the caller keeps between solves ([`DeviceCgWork`]; made anew when
+/// they do not fit this system).
+pub fn device_cg_in<R: DeviceReal>(
+    work: &mut DeviceCgWork<R>,
+    a: &DeviceBsr3<R>,
+    b: &DeviceBuffer<Vec3<R>>,
+    x: &mut DeviceBuffer<Vec3<R>>,
+    precond: &DeviceBlockJacobi<R>,
+    params: &DeviceCgParams<R>,
+) -> Result<CgInfo<R>, CgError<R>>
+where
+    Mat3<R>: Scalar + bytemuck::Pod,
+    Vec3<R>: Scalar<Real = R> + bytemuck::Pod,
+{
     let (n, nb) = (a.rows(), a.batches());
     assert!(
         a.cols() == n && b.len() == n * nb && x.len() == n * nb,
@@ -291,25 +365,10 @@ where
         x.len()
     );
     let dev = b.device().clone();
-    let e = CgError::Device;
-    let vec = || DeviceBuffer::<Vec3<R>>::zeros(&dev, n * nb);
-    let parts = launch::reduction_parts(n) as usize;
-    let w = Work {
-        r: vec().map_err(e)?,
-        z: vec().map_err(e)?,
-        p: vec().map_err(e)?,
-        q: vec().map_err(e)?,
-        partials: DeviceBuffer::zeros(&dev, parts * nb).map_err(e)?,
-        pair_partials: DeviceBuffer::zeros(&dev, parts * nb).map_err(e)?,
-        pq: DeviceBuffer::zeros(&dev, nb).map_err(e)?,
-        rz_rr: DeviceBuffer::zeros(&dev, nb).map_err(e)?,
-        rz_old: DeviceBuffer::from_slice(&dev, &vec![R::ONE; nb]).map_err(e)?,
-        alpha: DeviceBuffer::zeros(&dev, nb).map_err(e)?,
-        beta: DeviceBuffer::zeros(&dev, nb).map_err(e)?,
-        tol2: DeviceBuffer::zeros(&dev, nb).map_err(e)?,
-        active: DeviceBuffer::from_slice(&dev, &vec![1u32; nb]).map_err(e)?,
-        iterations: DeviceBuffer::zeros(&dev, nb).map_err(e)?,
-    };
+    if !work.fits(&dev, n, nb) {
+        *work = DeviceCgWork::new(&dev, n, nb).map_err(CgError::Device)?;
+    }
+    let w = work;
     let mut ops = DeviceCg {
         dev,
         a,

@@ -287,8 +287,8 @@ impl Device for CudaDevice {
             .get(kernel)
             .ok_or_else(|| Error::Device(format!("no kernel {kernel} in the catalogue")))?;
         self.bind()?;
-        // each value at the start of an 8-byte slot (Arg::bytes), aligned for every argument type
-        let mut slots: Vec<u64> = args.iter().map(|a| u64::from_ne_bytes(a.bytes().0)).collect();
+        // each value at the start of an 8-byte slot (Arg::slot), aligned for every argument type
+        let mut slots: Vec<u64> = args.iter().map(Arg::slot).collect();
         let mut params: Vec<*mut c_void> = slots.iter_mut().map(|s| (s as *mut u64).cast()).collect();
         // SAFETY: `f` is an entry point of a module this device keeps loaded; the caller's
         // contract (Device::launch) makes `args` match its parameters and its pointers valid;

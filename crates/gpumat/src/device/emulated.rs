@@ -288,16 +288,10 @@ impl Device for EmulatedDevice {
         Ok(())
     }
     unsafe fn launch(&self, kernel: &str, grid: Grid, args: &[Arg]) -> Result<(), Error> {
-        let mut slots: Vec<u64> = args
-            .iter()
-            .map(|a| {
-                let (bytes, _) = a.bytes();
-                u64::from_ne_bytes(bytes)
-            })
-            .collect();
+        let mut slots: Vec<u64> = args.iter().map(Arg::slot).collect();
         let mut ptrs: Vec<*mut c_void> = slots.iter_mut().map(|s| (s as *mut u64).cast()).collect();
         // SAFETY: the caller's contract (Device::launch); each value sits in an 8-byte slot
-        // whose first bytes are the value (little or big endian alike: `bytes` writes the
+        // whose first bytes are the value (little or big endian alike: `slot` writes the
         // value's own representation at the start).
         unsafe { self.lib.launch_raw(kernel, grid, &mut ptrs) }
     }

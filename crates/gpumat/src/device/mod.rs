@@ -34,7 +34,7 @@ mod cuda;
 pub mod emulated;
 
 pub use bsr::{DeviceBlockJacobi, DeviceBsr3, DevicePattern};
-pub use cg::{device_cg, DeviceCgParams};
+pub use cg::{device_cg, device_cg_in, DeviceCgParams, DeviceCgWork};
 #[cfg(feature = "cuda")]
 pub use cuda::{cache_dir, CudaDevice};
 
@@ -59,28 +59,17 @@ pub enum Arg {
 }
 
 impl Arg {
-    /// The value's bytes in an 8-byte slot and its size.
-    pub fn bytes(&self) -> ([u8; 8], usize) {
+    /// The 8-byte slot `cuLaunchKernel` reads the value from: the value's own bytes (native
+    /// endianness) at its start, zeros after a 4-byte value.
+    pub fn slot(&self) -> u64 {
         let mut out = [0u8; 8];
-        let n = match *self {
-            Arg::Ptr(v) | Arg::Index(v) => {
-                out.copy_from_slice(&v.to_ne_bytes());
-                8
-            }
-            Arg::U32(v) => {
-                out[..4].copy_from_slice(&v.to_ne_bytes());
-                4
-            }
-            Arg::F32(v) => {
-                out[..4].copy_from_slice(&v.to_ne_bytes());
-                4
-            }
-            Arg::F64(v) => {
-                out.copy_from_slice(&v.to_ne_bytes());
-                8
-            }
-        };
-        (out, n)
+        match *self {
+            Arg::Ptr(v) | Arg::Index(v) => out.copy_from_slice(&v.to_ne_bytes()),
+            Arg::U32(v) => out[..4].copy_from_slice(&v.to_ne_bytes()),
+            Arg::F32(v) => out[..4].copy_from_slice(&v.to_ne_bytes()),
+            Arg::F64(v) => out.copy_from_slice(&v.to_ne_bytes()),
+        }
+        u64::from_ne_bytes(out)
     }
 }
 
