@@ -44,6 +44,10 @@ pub struct Evaluation {
     pub backward_iterations: usize,
     /// direct-solver fallbacks
     pub fallbacks: usize,
+    /// the Gauss-Newton matrix at the evaluated point (`n x n` row-major in the problem's
+    /// coordinates) when the evaluation made it ([`Problem::gauss_newton`]); the standard
+    /// errors at a fit's result use it instead of another tangent-linear pass
+    pub gauss_newton: Option<Vec<f64>>,
 }
 
 impl Evaluation {
@@ -116,9 +120,16 @@ impl Packed {
 
 /// The stored forward trajectory: `u` and `v` per frame (sec. 5.7: nothing else is stored;
 /// `K`, `A`, the contact forces and the cost gradients are recomputed in the backward pass).
-struct Trajectory {
+pub(crate) struct Trajectory {
     u: Vec<Packed>,
     v: Vec<Packed>,
+}
+
+impl Trajectory {
+    /// The state after integrator step `t` (0: the initial state).
+    pub(crate) fn state(&self, t: usize) -> (Matrix<Vec3<f64>>, Matrix<Vec3<f64>>) {
+        (self.u[t].unpack(), self.v[t].unpack())
+    }
 }
 
 impl Problem {
@@ -184,6 +195,7 @@ impl Problem {
             forward_iterations: 0,
             backward_iterations: 0,
             fallbacks: 0,
+            gauss_newton: None,
         };
         let mut traj = store.then(|| Trajectory {
             u: vec![Packed::pack(&self.sim.u)],
@@ -242,8 +254,33 @@ impl Problem {
     /// The cost at `x` and its adjoint gradient with respect to `x` (and the physical one).
     pub fn gradient(&mut self, x: &[f64]) -> Result<(Evaluation, Vec<f64>, PhysicalGradient), Error> {
         let model = self.model_at(x);
-        let (mut ev, traj) = self.forward(model.clone(), true)?;
+        let (ev, traj) = self.forward(model.clone(), true)?;
         let mut traj = traj.expect("stored");
+        self.backward(&model, ev, &mut traj, true)
+    }
+
+    /// The cost at `x`, its adjoint gradient and the forward run's stored states (for the
+    /// tangent-linear pass, [`Problem::gauss_newton`]).
+    pub(crate) fn gradient_keeping_states(
+        &mut self,
+        x: &[f64],
+    ) -> Result<(Evaluation, Vec<f64>, Trajectory), Error> {
+        let model = self.model_at(x);
+        let (ev, traj) = self.forward(model.clone(), true)?;
+        let mut traj = traj.expect("stored");
+        let (ev, g, _) = self.backward(&model, ev, &mut traj, false)?;
+        Ok((ev, g, traj))
+    }
+
+    /// The backward pass over a stored forward run of `model` (the evaluation `ev`); frees the
+    /// states it no longer needs as it goes when `free`.
+    fn backward(
+        &mut self,
+        model: &Model,
+        mut ev: Evaluation,
+        traj: &mut Trajectory,
+        free: bool,
+    ) -> Result<(Evaluation, Vec<f64>, PhysicalGradient), Error> {
         let tb = Instant::now();
         let n = self.sim.grid.dofs();
         let nm = model.newmark();
@@ -295,13 +332,15 @@ impl Problem {
             ub = new_ub;
             vb = new_vb;
             // free what the rest of the pass no longer needs
-            traj.u.truncate(step + 1);
-            traj.v.truncate(step + 1);
+            if free {
+                traj.u.truncate(step + 1);
+                traj.v.truncate(step + 1);
+            }
         }
         initial_velocity_adjoint(&self.sim, &vb, &mut grad);
         ev.backward_s = tb.elapsed().as_secs_f64() - cost_s;
         ev.cost_s += cost_s;
-        let gx = self.params.chain(&model, &grad);
+        let gx = self.params.chain(model, &grad);
         Ok((ev, gx, grad))
     }
 }

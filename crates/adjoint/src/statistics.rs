@@ -70,7 +70,8 @@ pub struct Uncertainty {
 /// residual variance `s^2 = r^T W r / (n - p)` over the same points and weights as `H`, mapped
 /// to the reported quantities by [`crate::params::Layout::x_scales`]. `None` when `H` is
 /// singular (a parameter the data do not determine) or there are no more points than
-/// parameters.
+/// parameters. `ev` is the evaluation at `x`; its Gauss-Newton matrix serves when it has one
+/// ([`Evaluation::gauss_newton`]).
 pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<Option<Uncertainty>, Error> {
     let p = x.len();
     let n: usize = ev.frames.iter().map(|f| f.informative).sum();
@@ -79,7 +80,11 @@ pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<
     }
     let rwr: f64 = ev.frames.iter().map(|f| f.weighted_squared).sum();
     let s2 = rwr / (n - p) as f64;
-    let h = problem.gauss_newton_matrix(x)?;
+    // the evaluation's own matrix when it made one (the same bits as a new pass at `x`)
+    let h = match &ev.gauss_newton {
+        Some(h) if h.len() == p * p => h.clone(),
+        _ => problem.gauss_newton_matrix(x)?,
+    };
     let Some(inv) = invert_small(&h, p) else {
         return Ok(None);
     };

@@ -11,12 +11,20 @@
 //!
 //! one extra solve per parameter and step with the same `A` as the forward step. The directional
 //! derivative `dR` of the step residual (with `u'` fixed) is taken by a central difference of
-//! two assemblies (relative accuracy about 1e-8); the solve is exact to the CG tolerance. The
+//! two assemblies (relative accuracy about 1e-8); the solve is exact to a relative residual of
+//! 1e-8 ([`TANGENT_TOLERANCE`]; the scene's CG tolerance when tighter): Gauss-Newton refits
+//! with contact stalled with tangents only as good as the forward solves' 1e-6. The
 //! Gauss-Newton matrix is `H = sum_t J_t^T W_t J_t` with `J_t = dr_t/du S_u(t)` from the cost's
 //! linearization ([`crate::cost::Cost::frame_gauss_newton`]); the gradient stays the exact
 //! adjoint one.
+//!
+//! The pass needs the forward states `u(t)`: [`Problem::gauss_newton`] takes them from the
+//! gradient's stored forward run (each step replayed, not solved:
+//! [`cutfem::fem::Simulation::replay_substep`], which leaves the linear solver as the step's
+//! own solve would, so the matrix is the same to the bit); [`Problem::gauss_newton_matrix`]
+//! steps itself.
 
-use crate::problem::{Evaluation, Problem};
+use crate::problem::{Evaluation, Problem, Trajectory};
 use crate::Error;
 use cutfem::fem::Model;
 use gpumat::{Matrix, Vec3};
@@ -24,31 +32,44 @@ use gpumat::{Matrix, Vec3};
 /// Step of the central difference of the step residual, in the unconstrained coordinates.
 const EPS: f64 = 1e-6;
 
+/// Relative residual of the tangent solves, about the central difference's own accuracy.
+const TANGENT_TOLERANCE: f64 = 1e-8;
+
 impl Problem {
     /// The cost, its adjoint gradient and the Gauss-Newton matrix (`n x n`, row-major) at `x`.
+    ///
+    /// The tangent-linear pass replays the gradient's forward run from its stored states
+    /// instead of solving each step again ([`cutfem::fem::Simulation::replay_substep`]): the
+    /// same matrix, to the bit, as [`Problem::gauss_newton_matrix`] at `x`, for every solver
+    /// that replays exactly (otherwise the pass runs its own forward steps).
     pub fn gauss_newton(&mut self, x: &[f64]) -> Result<(Evaluation, Vec<f64>, Vec<f64>), Error> {
-        let (ev, g, _) = self.gradient(x)?;
-        let h = self.gauss_newton_matrix(x)?;
+        let (mut ev, g, traj) = self.gradient_keeping_states(x)?;
+        let h = self.tangent_pass(x, &unit_directions(x.len()), Some(&traj))?;
+        ev.gauss_newton = Some(h.clone());
         Ok((ev, g, h))
     }
 
     /// The sensitivities `du(t)/dx_k` for every step (index `t`), or only the observed frames'
     /// Gauss-Newton contributions: returns `H`.
     pub fn gauss_newton_matrix(&mut self, x: &[f64]) -> Result<Vec<f64>, Error> {
-        let n = x.len();
-        let dirs: Vec<Vec<f64>> = (0..n)
-            .map(|k| {
-                let mut d = vec![0.0; n];
-                d[k] = 1.0;
-                d
-            })
-            .collect();
-        self.gauss_newton_directions(x, &dirs)
+        self.tangent_pass(x, &unit_directions(x.len()), None)
     }
 
     /// The Gauss-Newton matrix in the directions `dirs` (`D^T H D`, `m x m` row-major for `m`
     /// directions): one tangent-linear pass per direction instead of one per coordinate.
     pub fn gauss_newton_directions(&mut self, x: &[f64], dirs: &[Vec<f64>]) -> Result<Vec<f64>, Error> {
+        self.tangent_pass(x, dirs, None)
+    }
+
+    /// The tangent-linear pass in the directions `dirs`, replaying a stored forward run of
+    /// the model at `x` when given (and the solver replays exactly), else stepping itself.
+    fn tangent_pass(
+        &mut self,
+        x: &[f64],
+        dirs: &[Vec<f64>],
+        stored: Option<&Trajectory>,
+    ) -> Result<Vec<f64>, Error> {
+        let stored = stored.filter(|_| self.sim.replays_exactly());
         let n = dirs.len();
         let model = self.model_at(x);
         let dofs = self.sim.grid.dofs();
@@ -86,9 +107,17 @@ impl Problem {
         let substeps = model.substeps;
         for t in 1..=self.integrator_steps() {
             let (u0, v0) = (self.sim.u.clone(), self.sim.v.clone());
-            self.sim
-                .substep()
-                .map_err(|e| Error::Diverged(format!("step {t}: {e}")))?;
+            match stored {
+                Some(traj) => {
+                    let (u, v) = traj.state(t);
+                    self.sim.replay_substep(u, v);
+                }
+                None => {
+                    self.sim
+                        .substep()
+                        .map_err(|e| Error::Diverged(format!("step {t}: {e}")))?;
+                }
+            }
             let (u1, v1) = (self.sim.u.clone(), self.sim.v.clone());
             let mut drs = Vec::with_capacity(n);
             for k in 0..n {
@@ -111,10 +140,11 @@ impl Problem {
             self.sim.v = v0;
             self.sim.linearize_contact_at(Some(u1.clone()));
             self.sim.assemble_system();
+            self.sim.expect_solves(n);
             for k in 0..n {
                 let mut x = Matrix::eval(su[k].ex() + sv[k].ex() * dt);
                 self.sim
-                    .solve_newmark(&drs[k], &mut x)
+                    .solve_newmark_to(&drs[k], &mut x, TANGENT_TOLERANCE)
                     .map_err(|e| Error::Diverged(format!("tangent step {t}: {e}")))?;
                 nm.update_velocity(&mut sv[k], &x, &su[k]);
                 su[k] = x;
@@ -131,4 +161,15 @@ impl Problem {
         }
         Ok(h)
     }
+}
+
+/// The unit vectors of `R^n`.
+fn unit_directions(n: usize) -> Vec<Vec<f64>> {
+    (0..n)
+        .map(|k| {
+            let mut d = vec![0.0; n];
+            d[k] = 1.0;
+            d
+        })
+        .collect()
 }

@@ -6,7 +6,7 @@
 
 mod fem_common;
 
-use cutfem::fem::solver::{solve, LinearSolver};
+use cutfem::fem::solver::{solve, LinearSolver, MIN_SOLVES_AHEAD};
 use cutfem::fem::{Grid, Model, Preconditioner, Simulation, SolverSettings};
 use cutfem::scene::Scene;
 use fem_common::{thesis_cuboid_grid, SMALL_BOX_SCENE};
@@ -168,6 +168,59 @@ fn linear_solver_state_and_stateless_solve() {
     for x in [&x2, &x3, &x4] {
         assert!(relative_difference(x, &y) < 1e-7);
     }
+}
+
+/// The repeated-matrix rule (`reuse_factor`): solves with one matrix within a time step stay
+/// CG (a tangent pass' few solves per step) unless `MIN_SOLVES_AHEAD` are announced; the same
+/// matrix met at a later step is factored and solved directly, and the factor serves every
+/// later solve with it; a run starts afresh.
+#[test]
+fn repeated_matrix_is_factored_only_across_steps() {
+    let (grid, model) = thesis_cuboid_grid(4.0, false);
+    let mut sim = Simulation::new(grid, model).unwrap();
+    sim.step().unwrap();
+    let a = sim.newmark_matrix().clone();
+    let b = Matrix::eval(&a * &sim.u);
+    let s = SolverSettings {
+        preconditioner: Preconditioner::BlockIc0,
+        ..SolverSettings::default()
+    };
+    assert!(s.reuse_factor);
+    let mut lin = LinearSolver::new(Some(&sim.grid.positions));
+    let solve_once = |lin: &mut LinearSolver| {
+        let mut x = Matrix::zeros_shape(b.shape());
+        let info = lin.solve(&a, &b, &mut x, &s).unwrap();
+        assert!(info.residual <= s.cg.tolerance, "{info:?}");
+        (info.factorizations, info.iterations)
+    };
+    lin.new_step();
+    // within the step: CG each time (block IC(0) counts one factorization per solve)
+    for _ in 0..3 {
+        let (f, its) = solve_once(&mut lin);
+        assert!(f == 1 && its > 0, "({f}, {its})");
+    }
+    // the next step meets it again: one direct factor, no CG iterations, and none after
+    lin.new_step();
+    assert_eq!(solve_once(&mut lin), (1, 0));
+    assert_eq!(solve_once(&mut lin), (0, 0));
+    lin.new_step();
+    assert_eq!(solve_once(&mut lin), (0, 0));
+    // a new run forgets the factor: CG again
+    lin.new_run();
+    lin.new_step();
+    let (f, its) = solve_once(&mut lin);
+    assert!(f == 1 && its > 0, "({f}, {its})");
+    // two solves announced within a step: CG; three: the first is factored and solved directly
+    lin.new_run();
+    lin.new_step();
+    lin.expect_solves(MIN_SOLVES_AHEAD - 1);
+    let (f, its) = solve_once(&mut lin);
+    assert!(f == 1 && its > 0, "({f}, {its})");
+    lin.new_run();
+    lin.new_step();
+    lin.expect_solves(MIN_SOLVES_AHEAD);
+    assert_eq!(solve_once(&mut lin), (1, 0));
+    assert_eq!(solve_once(&mut lin), (0, 0));
 }
 
 #[test]

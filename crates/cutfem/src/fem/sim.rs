@@ -312,6 +312,7 @@ impl Simulation {
     /// solve and the velocity update (eq. 2.6.2-2.6.4).
     pub fn substep(&mut self) -> Result<StepInfo, Error> {
         self.contact_at = None;
+        self.linear.new_step();
         let mut info = self.assemble_system_with(false);
         let dt = self.model.dt;
         let mut x = Matrix::eval(self.u.ex() + self.v.ex() * dt);
@@ -323,6 +324,36 @@ impl Simulation {
         self.u = x;
         self.steps += 1;
         Ok(info)
+    }
+
+    /// Takes the state `(u, v)` a [`Simulation::substep`] from the current state gave before
+    /// (a stored run of the same model from the same start), without solving: the step is
+    /// assembled as the substep assembles it and counts for the step counter and for the
+    /// linear solver's repeated-matrix rule as the substep's solve would
+    /// ([`LinearSolver::replay`]); the contact's Newton iterations are not replayed (their
+    /// matrices change within the step, which the rule does not count). The tangent-linear
+    /// pass of a fit replays its forward run this way. A `rest_cholesky` solver's state
+    /// follows its solves' iteration counts, which a replay does not have:
+    /// [`Simulation::replays_exactly`] says whether the solves after a replay are the ones
+    /// after the substep.
+    ///
+    /// [`LinearSolver::replay`]: super::LinearSolver::replay
+    pub fn replay_substep(&mut self, u: Matrix<Vec3<f64>>, v: Matrix<Vec3<f64>>) {
+        self.contact_at = None;
+        self.linear.new_step();
+        self.assemble_system_with(false);
+        self.linear.replay(&self.a, &self.solver);
+        self.u = u;
+        self.v = v;
+        self.steps += 1;
+    }
+
+    /// Whether [`Simulation::replay_substep`] leaves the linear solver as the substep would
+    /// (every solver but a host `rest_cholesky`, whose refactor rule follows CG's iterations).
+    pub fn replays_exactly(&self) -> bool {
+        self.solver.direct
+            || self.linear.device_name().is_some()
+            || self.solver.preconditioner != Preconditioner::RestCholesky
     }
 
     /// Solves `A x = b` (the last assembly's) from `x`, adding the solver's counts and times to
@@ -432,6 +463,27 @@ impl Simulation {
     ) -> Result<(usize, f64, bool), Error> {
         let si = self.linear.solve(&self.a, rhs, x, &self.solver)?;
         Ok((si.iterations, si.residual, si.fallback))
+    }
+
+    /// [`Simulation::solve_newmark`] to a relative residual of at most `tolerance` (the
+    /// scene's CG tolerance when that is tighter).
+    pub fn solve_newmark_to(
+        &mut self,
+        rhs: &Matrix<Vec3<f64>>,
+        x: &mut Matrix<Vec3<f64>>,
+        tolerance: f64,
+    ) -> Result<(usize, f64, bool), Error> {
+        let mut settings = self.solver;
+        settings.cg.tolerance = settings.cg.tolerance.min(tolerance);
+        let si = self.linear.solve(&self.a, rhs, x, &settings)?;
+        Ok((si.iterations, si.residual, si.fallback))
+    }
+
+    /// The next `n` linear solves are with the current matrix ([`LinearSolver::expect_solves`]).
+    ///
+    /// [`LinearSolver::expect_solves`]: super::LinearSolver::expect_solves
+    pub fn expect_solves(&mut self, n: usize) {
+        self.linear.expect_solves(n);
     }
 
     /// The per-cell rotations of the last assembly (`None` without corotation).

@@ -21,18 +21,26 @@
 //!   but each costs a triangular solve of a factor with 8e7 entries and the factorization
 //!   costs seconds, so it is not faster than block-Jacobi on this machine.
 //!
-//! **A matrix met twice in a row is factored and solved directly** ([`SolverSettings::reuse_factor`],
-//! scene key `[numerics] reuse_factor`, on by default). A linear model without contact has the
-//! same Newmark matrix `A = M/(theta dt)^2 ... + K` (eq. 2.6.2) at every step, and the adjoint
-//! (eq. 5.5.x, `A` symmetric) and tangent-linear passes solve with it again. When the solver
-//! sees the values of the previous solve's matrix again (a 64-bit fingerprint of the pattern
-//! and the values' bits), it factors it (sparse Cholesky, nested dissection, the symbolic
+//! **A matrix that outlives its time step is factored and solved directly**
+//! ([`SolverSettings::reuse_factor`], scene key `[numerics] reuse_factor`, on by default). A
+//! linear model without contact has the same Newmark matrix `A = M/(theta dt)^2 ... + K` (eq.
+//! 2.6.2) at every step, and the adjoint (eq. 5.5.x, `A` symmetric) and tangent-linear passes
+//! solve with it again. When the solver sees the values of the previous solve's matrix again
+//! (a 64-bit fingerprint of the pattern and the values' bits) at a later time step than the one
+//! where it first met them ([`LinearSolver::new_step`], called by every integrator step), it
+//! factors it (sparse Cholesky, nested dissection, the symbolic
 //! analysis kept while the pattern stays) and solves every further system with that matrix by
 //! two triangular solves, checking the relative residual against the CG tolerance (a mismatch
 //! falls back to CG from the direct solution). Factors above [`MAX_REUSED_FACTOR`] entries are
 //! not made. On the 1.05 x 0.22 x 0.22 bar at resolution 20 (about 3 300 unknowns; IC(0)-CG
 //! needed about 30 iterations per solve) a diagnosis' evaluations got several times faster
-//! (docs/effects.md, "Speed").
+//! (docs/effects.md, "Speed"). The solves within one step do not count, unless at least
+//! [`MIN_SOLVES_AHEAD`] are announced ([`LinearSolver::expect_solves`]): a corotated model's
+//! matrix changes every step, and its tangent-linear pass solves with each step's matrix once
+//! per fitted parameter (to a relative residual of 1e-8, `adjoint::tangent`); factoring it
+//! there for two solves made the swinging torus' fit (Table D, 2 parameters) slower, 132.8 s
+//! against 97.8 s with CG (docs/simulation.md), while fits of many parameters (a stiffness
+//! field's) solve many times per step and gain from the factor.
 //!
 //! [`StepInfo`](super::StepInfo) counts the factorizations of a step and their seconds.
 
@@ -149,6 +157,12 @@ pub struct LinearSolver {
     factorizations: usize,
     /// the fingerprint of the previous solve's matrix
     last_key: Option<u64>,
+    /// the time step at which the run of solves with the `last_key` matrix began
+    last_key_step: u64,
+    /// time steps begun ([`LinearSolver::new_step`])
+    step: u64,
+    /// solves announced with the coming matrix ([`LinearSolver::expect_solves`])
+    ahead: usize,
     /// the direct factor of a repeated matrix and its fingerprint
     repeated: Option<(u64, SparseCholesky<Mat3<f64>>)>,
     /// a pattern whose factor exceeded [`MAX_REUSED_FACTOR`]: not analysed again
@@ -156,6 +170,11 @@ pub struct LinearSolver {
     /// solves on a device (`[numerics] backend = "cuda"`, [`super::device_solve`])
     device: Option<super::device_solve::DeviceSolver>,
 }
+
+/// The next solve's matrix is factored (when not kept already) if at least this many solves
+/// with it are announced ([`LinearSolver::expect_solves`]): two tangent solves per step of the
+/// corotated torus (Table D) were faster by CG to 1e-8 (module docs).
+pub const MIN_SOLVES_AHEAD: usize = 3;
 
 /// The most entries of a factor made for a repeated matrix (8 bytes each: 200 MB).
 pub const MAX_REUSED_FACTOR: usize = 25_000_000;
@@ -196,6 +215,18 @@ impl LinearSolver {
         self.device.as_ref().map(|d| d.name())
     }
 
+    /// A time step begins: a matrix counts as repeated when it is met again at a later step
+    /// (module docs).
+    pub fn new_step(&mut self) {
+        self.step += 1;
+    }
+
+    /// The next `n` solves are with one matrix (the tangent-linear pass' directions): with at
+    /// least [`MIN_SOLVES_AHEAD`] the first of them counts as a repeat (module docs).
+    pub fn expect_solves(&mut self, n: usize) {
+        self.ahead = n;
+    }
+
     /// Numeric factorizations done so far.
     pub fn factorizations(&self) -> usize {
         self.factorizations
@@ -212,6 +243,7 @@ impl LinearSolver {
     pub fn new_run(&mut self) {
         self.last_key = None;
         self.repeated = None;
+        self.ahead = 0;
     }
 
     /// The model changed: the next solve does not count as a repeat of the last one (a kept
@@ -246,6 +278,8 @@ impl LinearSolver {
         settings: &SolverSettings,
     ) -> Result<SolveInfo, Error> {
         let mut info = SolveInfo::default();
+        // an announcement serves the next solve only, whichever path it takes
+        let announced = std::mem::take(&mut self.ahead) >= MIN_SOLVES_AHEAD;
         if settings.direct {
             let t = Instant::now();
             let chol = self.factor(a)?;
@@ -259,7 +293,7 @@ impl LinearSolver {
             let outcome = device.solve(a, b, x, &settings.cg)?;
             return self.finish(outcome, a, b, x, settings, info);
         }
-        if settings.reuse_factor && self.solve_repeated(a, b, x, settings, &mut info)? {
+        if settings.reuse_factor && self.solve_repeated(a, b, x, settings, &mut info, announced)? {
             return Ok(info);
         }
         let outcome = match settings.preconditioner {
@@ -285,19 +319,19 @@ impl LinearSolver {
         self.finish(outcome, a, b, x, settings, info)
     }
 
-    /// The direct solve of a repeated matrix (module docs): true when `x` solves `a x = b`
-    /// to the CG tolerance.
-    fn solve_repeated(
-        &mut self,
-        a: &SparseMatrix<Mat3<f64>>,
-        b: &Matrix<Vec3<f64>>,
-        x: &mut Matrix<Vec3<f64>>,
-        settings: &SolverSettings,
-        info: &mut SolveInfo,
-    ) -> Result<bool, Error> {
+    /// The repeated-matrix rule's account of a solve with `a` (module docs): records it, and
+    /// factors `a` when it repeats; true when a factor of `a` is kept.
+    /// `announced`: enough solves with `a` are announced to count it as a repeat at once.
+    fn meet(&mut self, a: &SparseMatrix<Mat3<f64>>, info: &mut SolveInfo, announced: bool) -> bool {
         let key = fingerprint(a);
-        let repeat = self.last_key == Some(key);
-        self.last_key = Some(key);
+        // met again at a later time step than the run of solves with it began (the tangent
+        // passes' solves with the step's own matrix do not count unless enough are announced:
+        // module docs)
+        let repeat = announced || (self.last_key == Some(key) && self.last_key_step != self.step);
+        if self.last_key != Some(key) {
+            self.last_key = Some(key);
+            self.last_key_step = self.step;
+        }
         let known = self
             .repeated
             .as_ref()
@@ -305,7 +339,7 @@ impl LinearSolver {
         if !known {
             let big = self.too_large.as_ref().is_some_and(|p| p.same_as(a.pattern()));
             if !repeat || big {
-                return Ok(false);
+                return false;
             }
             let t = Instant::now();
             let chol = match self.repeated.take() {
@@ -321,11 +355,37 @@ impl LinearSolver {
                 }
                 Ok(None) => {
                     self.too_large = Some(a.pattern().clone());
-                    return Ok(false);
+                    return false;
                 }
                 // not positive definite: CG decides what that means
-                Err(_) => return Ok(false),
+                Err(_) => return false,
             }
+        }
+        true
+    }
+
+    /// Accounts for a solve with `a` that a replayed step does not make
+    /// ([`crate::fem::Simulation::replay_substep`]): the repeated-matrix rule's state (and a
+    /// factor it makes) is then what the solve would have left.
+    pub fn replay(&mut self, a: &SparseMatrix<Mat3<f64>>, settings: &SolverSettings) {
+        if settings.reuse_factor && !settings.direct && self.device.is_none() {
+            self.meet(a, &mut SolveInfo::default(), false);
+        }
+    }
+
+    /// The direct solve of a repeated matrix (module docs): true when `x` solves `a x = b`
+    /// to the CG tolerance.
+    fn solve_repeated(
+        &mut self,
+        a: &SparseMatrix<Mat3<f64>>,
+        b: &Matrix<Vec3<f64>>,
+        x: &mut Matrix<Vec3<f64>>,
+        settings: &SolverSettings,
+        info: &mut SolveInfo,
+        announced: bool,
+    ) -> Result<bool, Error> {
+        if !self.meet(a, info, announced) {
+            return Ok(false);
         }
         let chol = &self.repeated.as_ref().expect("factored above").1;
         info.residual = direct(chol, a, b, x);

@@ -32,8 +32,8 @@ pub struct NumericsSection {
     /// thesis') or "rest_cholesky" ([`crate::fem::solver`])
     #[serde(default)]
     pub preconditioner: crate::fem::Preconditioner,
-    /// factor a Newmark matrix met twice in a row (a linear model without contact: the same at
-    /// every step, forward, adjoint and tangent) and solve directly while it stays the same
+    /// factor a Newmark matrix met again at a later step (a linear model without contact: the
+    /// same at every step, forward, adjoint and tangent) and solve directly while it stays the same
     /// (default true; [`crate::fem::solver`])
     #[serde(default = "reuse_factor")]
     pub reuse_factor: bool,
