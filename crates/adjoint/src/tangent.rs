@@ -12,8 +12,8 @@
 //! one extra solve per parameter and step with the same `A` as the forward step. The directional
 //! derivative `dR` of the step residual (with `u'` fixed) is taken by a central difference of
 //! two assemblies (relative accuracy about 1e-8); the solve is exact to a relative residual of
-//! 1e-8 ([`TANGENT_TOLERANCE`]; the scene's CG tolerance when tighter): Gauss-Newton refits
-//! with contact stalled with tangents only as good as the forward solves' 1e-6. The
+//! at most 1e-8 ([`TANGENT_TOLERANCE`], the scene's `cg_tolerance` when tighter; the default
+//! is 1e-8), whatever looser tolerance a scene gives its forward solves. The
 //! Gauss-Newton matrix is `H = sum_t J_t^T W_t J_t` with `J_t = dr_t/du S_u(t)` from the cost's
 //! linearization ([`crate::cost::Cost::frame_gauss_newton`]); the gradient stays the exact
 //! adjoint one.
