@@ -15,7 +15,9 @@
 //! - ray: the first hit inside the block is wanted (a hit farther out is farther than the reach
 //!   from the point, which the cost rejects anyway); a hit point `X = o + t d` lies in a bin
 //!   the ray crosses, so only the bins of the block whose box the ray crosses (`t > 0`, slab
-//!   test) are searched.
+//!   test) are searched, in the order the ray enters them; once a bin is entered after the
+//!   best hit so far (`t_entry > t_best`, up to a rounding slack) no later bin can hold the
+//!   first hit, whose own bin the ray enters before reaching it, and the search stops.
 
 use gpumat::Vec3;
 use std::collections::HashMap;
@@ -31,6 +33,8 @@ pub(super) struct FaceBins {
 
 /// Chebyshev radius of the searched block around a point's bin.
 const RADIUS: i64 = 2;
+/// Bins along one side of the block.
+const SIDE: usize = (2 * RADIUS + 1) as usize;
 
 impl FaceBins {
     /// Bins of `size` holding the faces of the deformed vertices `x` (a face whose box spans
@@ -92,7 +96,8 @@ impl FaceBins {
 
     /// The face with the smallest ray parameter `key(face) = (t, barycentric)` (`None`: no
     /// hit) among the hits `o + t d`, `t > 0`, inside the block around `p` (found through the
-    /// bins of the block that the ray crosses).
+    /// bins of the block that the ray crosses, in the order the ray enters them; the search
+    /// stops at the first bin entered after the best hit so far, see [`Self::crossed`]).
     pub(super) fn first_hit(
         &self,
         p: Vec3<f64>,
@@ -102,21 +107,73 @@ impl FaceBins {
     ) -> Best {
         let c = self.bin(p.to_array());
         let mut best: Best = None;
-        for r in 0..=RADIUS {
-            for off in shell(r) {
-                let b: [i64; 3] = std::array::from_fn(|a| c[a] + off[a]);
-                if self.ray_crosses(b, o, d) {
-                    self.visit(c, off, |fi| {
-                        let hit = key(fi).filter(|&(t, _)| {
-                            let x = self.bin((o + d * t).to_array());
-                            (0..3).all(|a| (x[a] - c[a]).abs() <= RADIUS)
-                        });
-                        consider(&mut best, fi, hit)
-                    });
+        // a hit at t lies in its own bin, which the ray enters (grown box) before t; rounding
+        // of the entry parameter is far below this slack
+        let slack = |t: f64| t + 1e-6 * self.size + 1e-9 * t.abs();
+        let crossed = self.crossed(c, o, d);
+        for &(t0, off) in &crossed.bins[..crossed.len] {
+            if best.is_some_and(|(t, _, _)| t0 > slack(t)) {
+                break;
+            }
+            self.visit(c, off, |fi| {
+                let hit = key(fi).filter(|&(t, _)| {
+                    let x = self.bin((o + d * t).to_array());
+                    (0..3).all(|a| (x[a] - c[a]).abs() <= RADIUS)
+                });
+                consider(&mut best, fi, hit)
+            });
+        }
+        best
+    }
+
+    /// The bins `c + off` of the block that the ray `o + t d`, `t > 0`, meets (their closed
+    /// boxes grown by a rounding margin), as `(entry t, off)` in increasing entry.
+    ///
+    /// Per axis the ray's parameters at the 6 bin planes of the block (each moved out by the
+    /// margin on either side of a bin) are computed once; a bin's interval is then the slab
+    /// test's `max` of entries and `min` of exits.
+    fn crossed(&self, c: [i64; 3], o: Vec3<f64>, d: Vec3<f64>) -> Crossed {
+        let (o, d) = (o.to_array(), d.to_array());
+        let margin = 1e-9 * self.size;
+        // per axis and block index: the parameter interval inside the slab, or None (parallel
+        // ray outside the slab); an axis the ray is parallel to gives (-inf, inf) inside
+        let mut slabs = [[None; SIDE]; 3];
+        for a in 0..3 {
+            for (i, slot) in slabs[a].iter_mut().enumerate() {
+                let b = c[a] - RADIUS + i as i64;
+                let lo = b as f64 * self.size - margin;
+                let hi = (b + 1) as f64 * self.size + margin;
+                *slot = if d[a] == 0.0 {
+                    (lo..=hi)
+                        .contains(&o[a])
+                        .then_some((f64::NEG_INFINITY, f64::INFINITY))
+                } else {
+                    let (ta, tb) = ((lo - o[a]) / d[a], (hi - o[a]) / d[a]);
+                    Some((ta.min(tb), ta.max(tb)))
+                };
+            }
+        }
+        let mut out = Crossed {
+            bins: [(0.0, [0; 3]); SIDE * SIDE * SIDE],
+            len: 0,
+        };
+        for (z, sz) in slabs[2].iter().enumerate() {
+            let Some((z0, z1)) = *sz else { continue };
+            for (y, sy) in slabs[1].iter().enumerate() {
+                let Some((y0, y1)) = *sy else { continue };
+                for (x, sx) in slabs[0].iter().enumerate() {
+                    let Some((x0, x1)) = *sx else { continue };
+                    let t0 = x0.max(y0).max(z0).max(0.0);
+                    let t1 = x1.min(y1).min(z1);
+                    if t0 <= t1 {
+                        out.bins[out.len] = (t0, [x as i64 - RADIUS, y as i64 - RADIUS, z as i64 - RADIUS]);
+                        out.len += 1;
+                    }
                 }
             }
         }
-        best
+        out.bins[..out.len].sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        out
     }
 
     /// Calls `f` for every face in bin `c + off`.
@@ -125,28 +182,12 @@ impl FaceBins {
             list.iter().for_each(|&fi| f(fi));
         }
     }
+}
 
-    /// Whether the ray `o + t d`, `t > 0`, meets the closed box of bin `b` (grown by a
-    /// rounding margin).
-    fn ray_crosses(&self, b: [i64; 3], o: Vec3<f64>, d: Vec3<f64>) -> bool {
-        let (o, d) = (o.to_array(), d.to_array());
-        let margin = 1e-9 * self.size;
-        let (mut t0, mut t1) = (0.0_f64, f64::INFINITY);
-        for a in 0..3 {
-            let lo = b[a] as f64 * self.size - margin;
-            let hi = (b[a] + 1) as f64 * self.size + margin;
-            if d[a] == 0.0 {
-                if o[a] < lo || o[a] > hi {
-                    return false;
-                }
-                continue;
-            }
-            let (ta, tb) = ((lo - o[a]) / d[a], (hi - o[a]) / d[a]);
-            t0 = t0.max(ta.min(tb));
-            t1 = t1.min(ta.max(tb));
-        }
-        t0 <= t1
-    }
+/// The bins of the block a ray crosses, with their entry parameters ([`FaceBins::crossed`]).
+struct Crossed {
+    bins: [(f64, [i64; 3]); SIDE * SIDE * SIDE],
+    len: usize,
 }
 
 /// Keeps the smaller key, ties going to the lower face index.
