@@ -29,6 +29,7 @@ use cutfem::fem::Grid;
 use cutfem::surface::Surface;
 use gpumat::{Matrix, Vec3};
 use rayon::prelude::*;
+use std::sync::Mutex;
 
 mod bins;
 
@@ -58,6 +59,20 @@ pub struct SurfaceCost {
     pub robust: Robust,
     /// residual charged to a point far from every triangle
     pub outside_residual: f64,
+    /// the last located hits of each frame, with the displacement and reach they were located
+    /// for ([`SurfaceCost::residuals`])
+    located: Mutex<Vec<Located>>,
+}
+
+/// The hits of one frame for one displacement: a Gauss-Newton matrix asks for the frames of
+/// the forward run whose cost was just taken, at the same displacement to the bit (the tangent
+/// pass replays the stored run), and gets them without a second search.
+#[derive(Debug)]
+struct Located {
+    frame: usize,
+    reach: f64,
+    u: Vec<Vec3<f64>>,
+    hits: Vec<Option<MeshHit>>,
 }
 
 /// The degrees of freedom that move one surface vertex, `u = sum w_i u_i` (unused entries:
@@ -199,6 +214,7 @@ impl SurfaceCost {
             frames,
             robust,
             outside_residual: 2.0 * h,
+            located: Mutex::new(Vec::new()),
         })
     }
 
@@ -313,9 +329,44 @@ impl SurfaceCost {
         })
     }
 
-    /// Residuals of `frame` (outside points: `None`).
+    /// Residuals of `frame` (outside points: `None`). The last hits of each frame are kept
+    /// with their displacement: asked again for the same `u` (equal to the bit) and reach, the
+    /// frame is not searched again.
     pub fn residuals(&self, frame: usize, u: &Matrix<Vec3<f64>>) -> Vec<Option<MeshHit>> {
-        self.locate(frame, &self.vertices(u))
+        let (us, reach) = (u.as_slice(), self.outside_residual);
+        let bits = |v: &Vec3<f64>| v.to_array().map(f64::to_bits);
+        let same = |l: &Located| {
+            l.frame == frame
+                && l.reach.to_bits() == reach.to_bits()
+                && l.u.len() == us.len()
+                && l.u.iter().zip(us).all(|(a, b)| bits(a) == bits(b))
+        };
+        if let Some(l) = self.cache().iter().find(|l| same(l)) {
+            return l.hits.clone();
+        }
+        let hits = self.locate(frame, &self.vertices(u));
+        let entry = Located {
+            frame,
+            reach,
+            u: us.to_vec(),
+            hits: hits.clone(),
+        };
+        let mut cache = self.cache();
+        match cache.iter_mut().find(|l| l.frame == frame) {
+            Some(l) => *l = entry,
+            None => cache.push(entry),
+        }
+        hits
+    }
+
+    /// The located hits (a poisoned lock only means another thread panicked mid-update of a
+    /// cache: start it afresh).
+    fn cache(&self) -> std::sync::MutexGuard<'_, Vec<Located>> {
+        self.located.lock().unwrap_or_else(|p| {
+            let mut g = p.into_inner();
+            g.clear();
+            g
+        })
     }
 
     /// Adds `s * dr/du` for one hit to `g`.

@@ -354,6 +354,49 @@ fn ray_residual_gradient_matches_finite_differences() {
     check_against_fd(&mut p, 1e-6);
 }
 
+/// The located hits a cost keeps per frame are what a fresh search returns: asked for
+/// displacements in turn (the same again, another, the first back, another reach), every answer
+/// equals a new cost's.
+#[test]
+fn kept_hits_equal_a_fresh_search() {
+    use adjoint::cost_mesh::SurfaceCost;
+    let g = grid();
+    let eye = Vec3::new(0.3, 2.5, 2.0);
+    let frames: Vec<(usize, Vec<ObservedPoint>)> = surface_observations(&g)
+        .into_iter()
+        .map(|(t, pts)| {
+            (
+                t,
+                pts.into_iter()
+                    .map(|p| ObservedPoint { eye: Some(eye), ..p })
+                    .collect(),
+            )
+        })
+        .collect();
+    let states = trajectory(start());
+    let mut kept = SurfaceCost::new(&g, frames.clone(), Robust::Squared).unwrap();
+    let near = kept.outside_residual;
+    for (frame, state, reach) in [
+        (2, 2, near),
+        (2, 2, near),
+        (2, 5, near),
+        (5, 5, near),
+        (2, 2, near),
+        (2, 2, 0.05 * near),
+    ] {
+        kept.outside_residual = reach;
+        let mut fresh = SurfaceCost::new(&g, frames.clone(), Robust::Squared).unwrap();
+        fresh.outside_residual = reach;
+        let got = kept.residuals(frame, &states[state]);
+        assert!(got.iter().any(Option::is_some));
+        assert_eq!(
+            got,
+            fresh.residuals(frame, &states[state]),
+            "frame {frame}, state {state}, reach {reach}"
+        );
+    }
+}
+
 /// An external force `sum_k c_k F_k` with the wind's three surface-traction fields
 /// (`F_d[i] = A_i e_d`) and a fourth, non-uniform one (a twist about the box's axis).
 fn with_external_force(mut m: Model, coefficients: [f64; 4]) -> Model {
