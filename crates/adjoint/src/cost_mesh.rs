@@ -17,9 +17,10 @@
 //! zero on exactly the surface that is shown and observed, so noise-free observations of a
 //! simulation are fitted to zero residual (the level-set cost keeps an `O(h^2)` floor from the
 //! difference of the two surfaces, about 0.8% of a cell on the swinging torus).
-//! Triangles are found through a uniform hash of their bounding boxes (bins of one cell,
-//! [`bins`]), searching the point's bin and its neighbours within `2h`; a point farther than
-//! that from every triangle gets the constant cost `rho(2h)` and no gradient.
+//! Triangles are found through a uniform grid of their bounding boxes (cells about one
+//! triangle wide, [`bins`]), searching around the point up to the reach (`2h` by default); a
+//! point farther than that from every triangle gets the constant cost `rho(reach)` and no
+//! gradient.
 
 use crate::cost::{frame_points, Cost, FrameCost, GaussNewtonColumns, ObservedPoint, Robust};
 use crate::Error;
@@ -254,7 +255,7 @@ impl SurfaceCost {
         if points.is_empty() {
             return Vec::new();
         }
-        // bins of half the reach: the 5x5x5 bins searched around a point cover it
+        // block bins of half the reach: the 5x5x5 block a ray's hit must lie in covers it
         let faces = &self.surface.mesh.faces;
         let bins = FaceBins::new(faces, x, self.h.max(0.5 * self.outside_residual));
         let reach = self.outside_residual;
@@ -268,7 +269,7 @@ impl SurfaceCost {
                         return Some(hit);
                     }
                 }
-                let best = bins.closest(p, |fi| {
+                let best = bins.closest(p, reach, |fi| {
                     let [a, b, cc] = faces[fi as usize].map(|v| x[v as usize]);
                     let bary = closest_on_triangle(p, a, b, cc);
                     let q = a * bary[0] + b * bary[1] + cc * bary[2];

@@ -1,103 +1,232 @@
-//! Triangles of the deformed surface binned by their bounding boxes, for the two queries of
+//! Triangles of the deformed surface in a uniform grid of small cells, for the two queries of
 //! the surface cost: the closest triangle to a point and the first triangle a viewing ray
 //! meets near a point.
 //!
-//! Both queries see only the triangles registered in the `5 x 5 x 5` bins around the point's
-//! bin (bins of size `b >= reach / 2`, so the block covers the reach). A triangle is
-//! registered in every bin its bounding box touches, so a triangle point `q` is found through
-//! `q`'s own bin. That gives two exact shortcuts, which change no result:
+//! A face is registered in every cell its bounding box (grown by a rounding margin) touches,
+//! so a face point `q` is found through `q`'s own cell. The cells are about one triangle wide
+//! (the mean largest side of the faces' boxes), so a cell holds a few faces; they are stored
+//! densely (compressed rows) over the box of the faces. Faces with a non-finite vertex, or
+//! whose box spans more than 8 *block bins* per axis (an exploded triangle), are left out.
 //!
-//! - closest point: the block is scanned in shells of growing Chebyshev radius `r`; after
-//!   shell `r` every triangle point closer to `p` than `d_r`, the distance from `p` to the
-//!   outside of the scanned `(2r+1)^3` cube, has been seen, so the scan stops once the best
-//!   distance is below `d_r` (ties still go to the lower face index: every face at the best
-//!   distance lies inside the cube);
-//! - ray: the first hit inside the block is wanted (a hit farther out is farther than the reach
-//!   from the point, which the cost rejects anyway); a hit point `X = o + t d` lies in a bin
-//!   the ray crosses, so only the bins of the block whose box the ray crosses (`t > 0`, slab
-//!   test) are searched, in the order the ray enters them; once a bin is entered after the
-//!   best hit so far (`t_entry > t_best`, up to a rounding slack) no later bin can hold the
-//!   first hit, whose own bin the ray enters before reaching it, and the search stops.
+//! - closest point ([`FaceBins::closest`]): the cells around `p`'s cell are scanned in shells
+//!   of growing Chebyshev radius `r`; after shell `r` every face point closer to `p` than
+//!   `d_r`, the distance from `p` to the outside of the scanned `(2r+1)^3` cube, has been
+//!   seen, so the scan stops once the best distance is below `d_r`, or once `d_r` exceeds
+//!   the caller's limit (a farther face is of no use). The answer is the closest face of
+//!   all, ties going to the lower face index, whenever that face lies within the limit.
+//! - ray ([`FaceBins::first_hit`]): the first hit `X = o + t d`, `t > 0`, that lies in the
+//!   block of `5 x 5 x 5` *block bins* (size `b >= reach / 2`, so the block covers the
+//!   reach) around the point's block bin. A hit farther out is farther than the reach from
+//!   the point, which the cost rejects anyway; the block keeps an occluder far from the point
+//!   from hiding it. The cells the ray crosses inside the block's box are walked in the
+//!   order the ray enters them (a 3D DDA); a hit point lies in (or within the margin of) the
+//!   cell the walk is in at its `t`, so once a cell is entered after the best hit so far
+//!   (`t_entry > t_best`, up to a rounding slack) no later cell can hold the first hit.
+//!
+//! Both answers equal a scan of every face (tests below), so the cell size changes speed,
+//! never a result.
 
 use gpumat::Vec3;
-use std::collections::HashMap;
+use std::cmp::Ordering;
 
 /// A best candidate: `(key, face, barycentric)`.
 pub(super) type Best = Option<(f64, usize, [f64; 3])>;
 
-/// Faces in uniform bins of their bounding boxes; see the module docs.
+/// Faces in uniform cells of their bounding boxes; see the module docs.
 pub(super) struct FaceBins {
-    bins: HashMap<[i64; 3], Vec<u32>>,
+    /// size of the block bins of the ray query
     size: f64,
+    /// size of the search cells
+    cell: f64,
+    /// index of the first cell of the stored grid, and the grid's cells per axis
+    lo: [i64; 3],
+    dims: [i64; 3],
+    /// the faces of stored cell `i` are `faces[start[i]..start[i + 1]]`, increasing
+    start: Vec<u32>,
+    faces: Vec<u32>,
 }
 
-/// Chebyshev radius of the searched block around a point's bin.
+/// Chebyshev radius of the ray query's block around a point's block bin.
 const RADIUS: i64 = 2;
-/// Bins along one side of the block.
-const SIDE: usize = (2 * RADIUS + 1) as usize;
+
+/// A face's box and the cells of it, before they are stored.
+struct Boxed {
+    face: u32,
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
 
 impl FaceBins {
-    /// Bins of `size` holding the faces of the deformed vertices `x` (a face whose box spans
-    /// more than 8 bins, an exploded triangle, is left out).
+    /// Cells holding the faces of the deformed vertices `x`; `size` is the block bin of the ray
+    /// query (module docs).
     pub(super) fn new(faces: &[[u32; 3]], x: &[Vec3<f64>], size: f64) -> Self {
-        let mut out = Self {
-            bins: HashMap::new(),
-            size,
-        };
-        for (fi, f) in faces.iter().enumerate() {
-            let [a, b, c] = f.map(|v| x[v as usize].to_array());
-            let lo = out.bin(std::array::from_fn(|d| a[d].min(b[d]).min(c[d])));
-            let hi = out.bin(std::array::from_fn(|d| a[d].max(b[d]).max(c[d])));
-            if (0..3).any(|d| hi[d] - lo[d] > 8) {
-                continue;
+        let boxed = boxed(faces, x, size);
+        // cells about one face wide, but at most 64 per face on average
+        let widest = |b: &Boxed| (0..3).map(|d| b.hi[d] - b.lo[d]).fold(0.0, f64::max);
+        let mean = boxed.iter().map(widest).sum::<f64>() / boxed.len().max(1) as f64;
+        let mut cell = if mean > 0.0 { mean.min(size) } else { size };
+        let cap = (64 * boxed.len()).max(4096) as f64;
+        loop {
+            let out = Self::store(&boxed, size, cell, cap);
+            match out {
+                Some(bins) => return bins,
+                None => cell *= 2.0,
             }
-            for z in lo[2]..=hi[2] {
-                for y in lo[1]..=hi[1] {
-                    for xx in lo[0]..=hi[0] {
-                        out.bins.entry([xx, y, z]).or_default().push(fi as u32);
+        }
+    }
+
+    /// The grid of cells of size `cell` over the boxes, or `None` when it would have more
+    /// than `cap` cells.
+    fn store(boxed: &[Boxed], size: f64, cell: f64, cap: f64) -> Option<Self> {
+        let range = |b: &Boxed| -> ([i64; 3], [i64; 3]) {
+            let scale = b.lo.iter().chain(&b.hi).fold(0.0_f64, |m, v| m.max(v.abs()));
+            let margin = 1e-9 * cell + 1e-12 * scale;
+            (
+                b.lo.map(|v| ((v - margin) / cell).floor() as i64),
+                b.hi.map(|v| ((v + margin) / cell).floor() as i64),
+            )
+        };
+        let mut lo = [i64::MAX; 3];
+        let mut hi = [i64::MIN; 3];
+        for b in boxed {
+            let (l, h) = range(b);
+            for d in 0..3 {
+                lo[d] = lo[d].min(l[d]);
+                hi[d] = hi[d].max(h[d]);
+            }
+        }
+        if boxed.is_empty() {
+            (lo, hi) = ([0; 3], [-1; 3]);
+        }
+        let dims: [i64; 3] = std::array::from_fn(|d| (hi[d] - lo[d] + 1).max(0));
+        if dims.iter().map(|&n| n as f64).product::<f64>() > cap {
+            return None;
+        }
+        let mut out = Self {
+            size,
+            cell,
+            lo,
+            dims,
+            start: vec![0; (dims[0] * dims[1] * dims[2]) as usize + 1],
+            faces: Vec::new(),
+        };
+        // count, then fill (compressed rows)
+        for pass in 0..2 {
+            let mut next = out.start.clone();
+            for b in boxed {
+                let (l, h) = range(b);
+                for z in l[2]..=h[2] {
+                    for y in l[1]..=h[1] {
+                        for xx in l[0]..=h[0] {
+                            let i = out.index([xx, y, z]).expect("inside the stored grid");
+                            if pass == 0 {
+                                out.start[i + 1] += 1;
+                            } else {
+                                out.faces[next[i] as usize] = b.face;
+                                next[i] += 1;
+                            }
+                        }
                     }
                 }
             }
+            if pass == 0 {
+                for i in 1..out.start.len() {
+                    out.start[i] += out.start[i - 1];
+                }
+                out.faces = vec![0; *out.start.last().unwrap_or(&0) as usize];
+            }
         }
-        out
+        Some(out)
     }
 
-    /// The bin of point `p`.
-    pub(super) fn bin(&self, p: [f64; 3]) -> [i64; 3] {
+    /// The stored index of cell `k`, `None` outside the stored grid.
+    fn index(&self, k: [i64; 3]) -> Option<usize> {
+        let r: [i64; 3] = std::array::from_fn(|d| k[d] - self.lo[d]);
+        ((0..3).all(|d| (0..self.dims[d]).contains(&r[d])))
+            .then(|| (r[0] + self.dims[0] * (r[1] + self.dims[1] * r[2])) as usize)
+    }
+
+    /// Calls `f` for every face of cell `k`.
+    fn visit(&self, k: [i64; 3], mut f: impl FnMut(u32)) {
+        if let Some(i) = self.index(k) {
+            let (a, b) = (self.start[i] as usize, self.start[i + 1] as usize);
+            self.faces[a..b].iter().for_each(|&fi| f(fi));
+        }
+    }
+
+    /// The cell of point `p`.
+    fn cell_of(&self, p: [f64; 3]) -> [i64; 3] {
+        p.map(|v| (v / self.cell).floor() as i64)
+    }
+
+    /// The block bin of point `p`.
+    fn block_of(&self, p: [f64; 3]) -> [i64; 3] {
         p.map(|v| (v / self.size).floor() as i64)
     }
 
-    /// The face with the smallest distance `key(face) = (|p - q|^2, barycentric)` among the
-    /// faces in the block around `p` (shell by shell; module docs).
-    pub(super) fn closest(&self, p: Vec3<f64>, mut key: impl FnMut(u32) -> (f64, [f64; 3])) -> Best {
+    /// The face with the smallest distance `key(face) = (|p - q|^2, barycentric)`, searched
+    /// shell by shell until no face within `limit` can be closer (module docs): the closest
+    /// face of all when it lies within `limit`; otherwise some face, or none.
+    pub(super) fn closest(
+        &self,
+        p: Vec3<f64>,
+        limit: f64,
+        mut key: impl FnMut(u32) -> (f64, [f64; 3]),
+    ) -> Best {
         let pa = p.to_array();
-        let c = self.bin(pa);
+        if pa.iter().any(|v| !v.is_finite()) || self.faces.is_empty() {
+            return None;
+        }
+        let c = self.cell_of(pa);
+        let hi: [i64; 3] = std::array::from_fn(|d| self.lo[d] + self.dims[d] - 1);
         let mut best: Best = None;
-        for r in 0..=RADIUS {
-            for off in shell(r) {
-                self.visit(c, off, |fi| consider(&mut best, fi, Some(key(fi))));
-            }
+        for r in 0.. {
+            self.shell(c, r, |k| {
+                self.visit(k, |fi| consider(&mut best, fi, Some(key(fi))))
+            });
             // the distance from p to the outside of the scanned cube
             let inside = (0..3)
                 .map(|a| {
-                    let lo = (c[a] - r) as f64 * self.size;
-                    let hi = (c[a] + r + 1) as f64 * self.size;
+                    let lo = (c[a] - r) as f64 * self.cell;
+                    let hi = (c[a] + r + 1) as f64 * self.cell;
                     (pa[a] - lo).min(hi - pa[a])
                 })
                 .fold(f64::INFINITY, f64::min);
-            if let Some((d2, _, _)) = best {
-                if d2 < inside * inside {
-                    break;
-                }
+            let found = best.is_some_and(|(d2, _, _)| d2 < inside * inside);
+            let all = (0..3).all(|a| c[a] - r <= self.lo[a] && c[a] + r >= hi[a]);
+            if found || inside > limit || all {
+                break;
             }
         }
         best
     }
 
+    /// Calls `f` for the stored cells at Chebyshev distance exactly `r` from cell `c`.
+    fn shell(&self, c: [i64; 3], r: i64, mut f: impl FnMut([i64; 3])) {
+        let clip = |a: usize| {
+            let lo = (c[a] - r).max(self.lo[a]);
+            let hi = (c[a] + r).min(self.lo[a] + self.dims[a] - 1);
+            lo..=hi
+        };
+        for z in clip(2) {
+            for y in clip(1) {
+                if (z - c[2]).abs() == r || (y - c[1]).abs() == r {
+                    clip(0).for_each(|x| f([x, y, z]));
+                } else {
+                    // r > 0 here: the two end cells of the row
+                    [c[0] - r, c[0] + r]
+                        .into_iter()
+                        .filter(|x| clip(0).contains(x))
+                        .for_each(|x| f([x, y, z]));
+                }
+            }
+        }
+    }
+
     /// The face with the smallest ray parameter `key(face) = (t, barycentric)` (`None`: no
-    /// hit) among the hits `o + t d`, `t > 0`, inside the block around `p` (found through the
-    /// bins of the block that the ray crosses, in the order the ray enters them; the search
-    /// stops at the first bin entered after the best hit so far, see [`Self::crossed`]).
+    /// hit) among the hits `o + t d`, `t > 0`, inside the block around `p`: the cells the ray
+    /// crosses inside the block's box, walked in the order the ray enters them, until one is
+    /// entered after the best hit so far (module docs).
     pub(super) fn first_hit(
         &self,
         p: Vec3<f64>,
@@ -105,89 +234,73 @@ impl FaceBins {
         d: Vec3<f64>,
         mut key: impl FnMut(u32) -> Option<(f64, [f64; 3])>,
     ) -> Best {
-        let c = self.bin(p.to_array());
-        let mut best: Best = None;
-        // a hit at t lies in its own bin, which the ray enters (grown box) before t; rounding
-        // of the entry parameter is far below this slack
-        let slack = |t: f64| t + 1e-6 * self.size + 1e-9 * t.abs();
-        let crossed = self.crossed(c, o, d);
-        for &(t0, off) in &crossed.bins[..crossed.len] {
-            if best.is_some_and(|(t, _, _)| t0 > slack(t)) {
-                break;
+        if self.faces.is_empty() {
+            return None;
+        }
+        let c = self.block_of(p.to_array());
+        let (oa, da) = (o.to_array(), d.to_array());
+        // the ray's parameters inside the block's box, grown by a rounding margin
+        let margin = 1e-9 * self.size;
+        let (mut t_in, mut t_out) = (0.0_f64, f64::INFINITY);
+        for a in 0..3 {
+            let lo = (c[a] - RADIUS) as f64 * self.size - margin;
+            let hi = (c[a] + RADIUS + 1) as f64 * self.size + margin;
+            if da[a] == 0.0 {
+                if !(lo..=hi).contains(&oa[a]) {
+                    return None;
+                }
+            } else {
+                let (ta, tb) = ((lo - oa[a]) / da[a], (hi - oa[a]) / da[a]);
+                t_in = t_in.max(ta.min(tb));
+                t_out = t_out.min(ta.max(tb));
             }
-            self.visit(c, off, |fi| {
+        }
+        // (no interval, or a NaN ray)
+        if !matches!(t_in.partial_cmp(&t_out), Some(Ordering::Less | Ordering::Equal)) {
+            return None;
+        }
+        // a hit at t lies in a cell the walk enters before t; rounding of the entry
+        // parameter is far below this slack
+        let slack = |t: f64| t + 1e-6 * self.cell + 1e-9 * t.abs();
+        let step: [i64; 3] = std::array::from_fn(|a| match da[a] {
+            v if v > 0.0 => 1,
+            v if v < 0.0 => -1,
+            _ => 0,
+        });
+        let hi: [i64; 3] = std::array::from_fn(|a| self.lo[a] + self.dims[a] - 1);
+        let gone =
+            |k: [i64; 3], a: usize| (k[a] > hi[a] && step[a] >= 0) || (k[a] < self.lo[a] && step[a] <= 0);
+        let mut k = self.cell_of(std::array::from_fn(|a| oa[a] + t_in * da[a]));
+        if (0..3).any(|a| gone(k, a)) {
+            return None;
+        }
+        let mut best: Best = None;
+        let mut t_entry = t_in;
+        while t_entry <= t_out && !best.is_some_and(|(t, _, _)| t_entry > slack(t)) {
+            self.visit(k, |fi| {
                 let hit = key(fi).filter(|&(t, _)| {
-                    let x = self.bin((o + d * t).to_array());
+                    let x = self.block_of((o + d * t).to_array());
                     (0..3).all(|a| (x[a] - c[a]).abs() <= RADIUS)
                 });
                 consider(&mut best, fi, hit)
             });
+            // the next cell: across the nearest of the cell's exit planes
+            let exit = (0..3)
+                .filter(|&a| step[a] != 0)
+                .map(|a| {
+                    let plane = (k[a] + (step[a] > 0) as i64) as f64 * self.cell;
+                    ((plane - oa[a]) / da[a], a)
+                })
+                .min_by(|x, y| x.0.total_cmp(&y.0));
+            let Some((t_exit, a)) = exit else { break };
+            t_entry = t_entry.max(t_exit);
+            k[a] += step[a];
+            if gone(k, a) {
+                break;
+            }
         }
         best
     }
-
-    /// The bins `c + off` of the block that the ray `o + t d`, `t > 0`, meets (their closed
-    /// boxes grown by a rounding margin), as `(entry t, off)` in increasing entry.
-    ///
-    /// Per axis the ray's parameters at the 6 bin planes of the block (each moved out by the
-    /// margin on either side of a bin) are computed once; a bin's interval is then the slab
-    /// test's `max` of entries and `min` of exits.
-    fn crossed(&self, c: [i64; 3], o: Vec3<f64>, d: Vec3<f64>) -> Crossed {
-        let (o, d) = (o.to_array(), d.to_array());
-        let margin = 1e-9 * self.size;
-        // per axis and block index: the parameter interval inside the slab, or None (parallel
-        // ray outside the slab); an axis the ray is parallel to gives (-inf, inf) inside
-        let mut slabs = [[None; SIDE]; 3];
-        for a in 0..3 {
-            for (i, slot) in slabs[a].iter_mut().enumerate() {
-                let b = c[a] - RADIUS + i as i64;
-                let lo = b as f64 * self.size - margin;
-                let hi = (b + 1) as f64 * self.size + margin;
-                *slot = if d[a] == 0.0 {
-                    (lo..=hi)
-                        .contains(&o[a])
-                        .then_some((f64::NEG_INFINITY, f64::INFINITY))
-                } else {
-                    let (ta, tb) = ((lo - o[a]) / d[a], (hi - o[a]) / d[a]);
-                    Some((ta.min(tb), ta.max(tb)))
-                };
-            }
-        }
-        let mut out = Crossed {
-            bins: [(0.0, [0; 3]); SIDE * SIDE * SIDE],
-            len: 0,
-        };
-        for (z, sz) in slabs[2].iter().enumerate() {
-            let Some((z0, z1)) = *sz else { continue };
-            for (y, sy) in slabs[1].iter().enumerate() {
-                let Some((y0, y1)) = *sy else { continue };
-                for (x, sx) in slabs[0].iter().enumerate() {
-                    let Some((x0, x1)) = *sx else { continue };
-                    let t0 = x0.max(y0).max(z0).max(0.0);
-                    let t1 = x1.min(y1).min(z1);
-                    if t0 <= t1 {
-                        out.bins[out.len] = (t0, [x as i64 - RADIUS, y as i64 - RADIUS, z as i64 - RADIUS]);
-                        out.len += 1;
-                    }
-                }
-            }
-        }
-        out.bins[..out.len].sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        out
-    }
-
-    /// Calls `f` for every face in bin `c + off`.
-    fn visit(&self, c: [i64; 3], off: [i64; 3], mut f: impl FnMut(u32)) {
-        if let Some(list) = self.bins.get(&[c[0] + off[0], c[1] + off[1], c[2] + off[2]]) {
-            list.iter().for_each(|&fi| f(fi));
-        }
-    }
-}
-
-/// The bins of the block a ray crosses, with their entry parameters ([`FaceBins::crossed`]).
-struct Crossed {
-    bins: [(f64, [i64; 3]); SIDE * SIDE * SIDE],
-    len: usize,
 }
 
 /// Keeps the smaller key, ties going to the lower face index.
@@ -202,15 +315,25 @@ fn consider(best: &mut Best, fi: u32, cand: Option<(f64, [f64; 3])>) {
     }
 }
 
-/// The bin offsets at Chebyshev distance exactly `r`.
-fn shell(r: i64) -> impl Iterator<Item = [i64; 3]> {
-    (-r..=r).flat_map(move |z| {
-        (-r..=r).flat_map(move |y| {
-            (-r..=r)
-                .map(move |x| [x, y, z])
-                .filter(move |o| o.iter().map(|v| v.abs()).max() == Some(r))
+/// The boxes of the faces that are stored: every vertex finite, at most 8 block bins of `size`
+/// across on each axis.
+fn boxed(faces: &[[u32; 3]], x: &[Vec3<f64>], size: f64) -> Vec<Boxed> {
+    let block = |v: f64| (v / size).floor();
+    faces
+        .iter()
+        .enumerate()
+        .filter_map(|(fi, f)| {
+            let [a, b, c] = f.map(|v| x[v as usize].to_array());
+            let lo: [f64; 3] = std::array::from_fn(|d| a[d].min(b[d]).min(c[d]));
+            let hi: [f64; 3] = std::array::from_fn(|d| a[d].max(b[d]).max(c[d]));
+            let finite = [a, b, c].iter().flatten().all(|v| v.is_finite());
+            (finite && (0..3).all(|d| block(hi[d]) - block(lo[d]) <= 8.0)).then_some(Boxed {
+                face: fi as u32,
+                lo,
+                hi,
+            })
         })
-    })
+        .collect()
 }
 
 #[cfg(test)]
@@ -218,30 +341,6 @@ mod tests {
     use super::super::{closest_on_triangle, ray_triangle};
     use super::*;
     use proptest::prelude::*;
-
-    #[test]
-    fn shells_tile_the_block_once() {
-        let mut all: Vec<[i64; 3]> = (0..=RADIUS).flat_map(shell).collect();
-        assert_eq!(all.len(), 125);
-        all.sort();
-        all.dedup();
-        assert_eq!(all.len(), 125);
-    }
-
-    /// Every face registered in a bin of the block around `p`, each once.
-    fn block_faces(bins: &FaceBins, p: Vec3<f64>) -> Vec<u32> {
-        let c = bins.bin(p.to_array());
-        let mut out: Vec<u32> = (0..=RADIUS)
-            .flat_map(shell)
-            .flat_map(|o| {
-                let b = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
-                bins.bins.get(&b).cloned().unwrap_or_default()
-            })
-            .collect();
-        out.sort();
-        out.dedup();
-        out
-    }
 
     fn smallest(cands: impl Iterator<Item = (u32, Option<(f64, [f64; 3])>)>) -> Best {
         let mut best = None;
@@ -253,30 +352,73 @@ mod tests {
         Vec3::from_array(a)
     }
 
+    /// Triangles with corners in `[-1, 1]^3 * spread`, edges up to `0.3 * scale`, and points.
     fn soup() -> impl Strategy<Value = (Vec<Vec3<f64>>, Vec<[f64; 3]>)> {
-        let corner = prop::array::uniform3(-1.0..1.0_f64);
-        let edge = prop::array::uniform3(-0.3..0.3_f64);
-        let tri = (corner, edge.clone(), edge);
+        let tri = (
+            prop::array::uniform3(-1.0..1.0_f64),
+            prop::array::uniform3(-0.3..0.3_f64),
+            prop::array::uniform3(-0.3..0.3_f64),
+        );
         (
-            prop::collection::vec(tri, 1..60).prop_map(|ts| {
-                ts.into_iter()
-                    .flat_map(|(a, e, f)| {
-                        let a = v(a);
-                        [a, a + v(e), a + v(f)]
-                    })
-                    .collect()
-            }),
+            prop::collection::vec(tri, 1..60),
+            0.1..1.0_f64,
+            0.05..1.0_f64,
             prop::collection::vec(prop::array::uniform3(-1.2..1.2_f64), 1..20),
         )
+            .prop_map(|(ts, spread, scale, points)| {
+                let x = ts
+                    .into_iter()
+                    .flat_map(|(a, e, f)| {
+                        let a = v(a) * spread;
+                        [a, a + v(e) * scale, a + v(f) * scale]
+                    })
+                    .collect();
+                let points = points.into_iter().map(|p| p.map(|c| c * spread)).collect();
+                (x, points)
+            })
+    }
+
+    fn faces_of(x: &[Vec3<f64>]) -> Vec<[u32; 3]> {
+        (0..x.len() as u32 / 3)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect()
+    }
+
+    /// The first hit a scan of every stored face finds inside the block around `p`.
+    fn brute_first_hit(
+        faces: &[[u32; 3]],
+        x: &[Vec3<f64>],
+        bins: &FaceBins,
+        p: Vec3<f64>,
+        eye: Vec3<f64>,
+        d: Vec3<f64>,
+    ) -> Best {
+        let c = bins.block_of(p.to_array());
+        let in_block = |t: f64| {
+            let b = bins.block_of((eye + d * t).to_array());
+            (0..3).all(|a| (b[a] - c[a]).abs() <= RADIUS)
+        };
+        smallest(boxed(faces, x, bins.size).into_iter().map(|b| {
+            let [p0, p1, p2] = faces[b.face as usize].map(|i| x[i as usize]);
+            (
+                b.face,
+                ray_triangle(eye, d, p0, p1, p2).filter(|&(t, _)| in_block(t)),
+            )
+        }))
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(64))]
+        #![proptest_config(ProptestConfig::with_cases(96))]
 
-        /// The shell scan with its early stop returns what a scan of the whole block returns.
+        /// The shell scan returns the closest stored face whenever it lies within the limit,
+        /// and nothing closer than the limit otherwise.
         #[test]
-        fn closest_is_the_block_minimum((x, points) in soup(), size in 0.05..0.5_f64) {
-            let faces: Vec<[u32; 3]> = (0..x.len() as u32 / 3).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        fn closest_is_the_closest_face_within_the_limit(
+            (x, points) in soup(),
+            size in 0.05..0.5_f64,
+            limit in 0.01..1.5_f64,
+        ) {
+            let faces = faces_of(&x);
             let bins = FaceBins::new(&faces, &x, size);
             for p in points.into_iter().map(v) {
                 let key = |fi: u32| {
@@ -285,20 +427,24 @@ mod tests {
                     let q = a * bary[0] + b * bary[1] + c * bary[2];
                     ((p - q).dot(p - q), bary)
                 };
-                let brute = smallest(block_faces(&bins, p).into_iter().map(|fi| (fi, Some(key(fi)))));
-                prop_assert_eq!(bins.closest(p, key), brute);
+                let brute = smallest(boxed(&faces, &x, size).into_iter().map(|b| (b.face, Some(key(b.face)))));
+                let got = bins.closest(p, limit, key);
+                match brute {
+                    Some((d2, _, _)) if d2.sqrt() <= limit => prop_assert_eq!(got, brute),
+                    _ => prop_assert!(got.is_none_or(|(d2, _, _)| d2.sqrt() > limit)),
+                }
             }
         }
 
-        /// The ray search over the crossed bins finds the first hit inside the block that a scan
-        /// of every face of the block finds.
+        /// The walk over the crossed cells finds the first hit inside the block that a scan of
+        /// every face finds.
         #[test]
         fn first_hit_is_the_first_hit_in_the_block(
             (x, points) in soup(),
             size in 0.05..0.5_f64,
             eye in prop::array::uniform3(-3.0..3.0_f64),
         ) {
-            let faces: Vec<[u32; 3]> = (0..x.len() as u32 / 3).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+            let faces = faces_of(&x);
             let bins = FaceBins::new(&faces, &x, size);
             let eye = v(eye);
             for p in points.into_iter().map(v) {
@@ -309,16 +455,59 @@ mod tests {
                     let [a, b, c] = faces[fi as usize].map(|i| x[i as usize]);
                     ray_triangle(eye, d, a, b, c)
                 };
-                let c = bins.bin(p.to_array());
-                let in_block = |t: f64| {
-                    let b = bins.bin((eye + d * t).to_array());
-                    (0..3).all(|a| (b[a] - c[a]).abs() <= RADIUS)
-                };
-                let brute = smallest(block_faces(&bins, p).into_iter().map(|fi| {
-                    (fi, key(fi).filter(|&(t, _)| in_block(t)))
-                }));
+                let brute = brute_first_hit(&faces, &x, &bins, p, eye, d);
                 prop_assert_eq!(bins.first_hit(p, eye, d, key), brute);
             }
         }
+    }
+
+    /// Rays along cell boundaries and through cell corners of a grid-aligned mesh (the plane
+    /// `z = 0.3` in 10 x 10 squares of 0.1, the cells' own size) hit what a scan of every
+    /// face hits; so do points on the boundaries for the closest face.
+    #[test]
+    fn rays_on_cell_boundaries_find_the_first_hit() {
+        let n = 10;
+        let mut x = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let (a, b) = (i as f64 * 0.1, j as f64 * 0.1);
+                let q = [[a, b], [a + 0.1, b], [a + 0.1, b + 0.1], [a, b + 0.1]].map(|[u, w]| v([u, w, 0.3]));
+                x.extend([q[0], q[1], q[2], q[0], q[2], q[3]]);
+            }
+        }
+        let faces = faces_of(&x);
+        let bins = FaceBins::new(&faces, &x, 0.25);
+        assert!((bins.cell - 0.1).abs() < 1e-12, "cell {}", bins.cell);
+        let mut hits = 0;
+        for j in 0..=n {
+            for i in 0..=n {
+                let p = v([i as f64 * 0.1, j as f64 * 0.1, 0.3]);
+                for eye in [
+                    p + v([0.0, 0.0, 2.0]),
+                    p + v([0.7, 0.0, 0.7]),
+                    p + v([0.5, 0.5, 0.5]),
+                    v([0.0, 0.0, 1.0]),
+                ] {
+                    let s = (p - eye).norm();
+                    let d = (p - eye) * (1.0 / s);
+                    let key = |fi: u32| {
+                        let [a, b, c] = faces[fi as usize].map(|k| x[k as usize]);
+                        ray_triangle(eye, d, a, b, c)
+                    };
+                    let brute = brute_first_hit(&faces, &x, &bins, p, eye, d);
+                    hits += brute.is_some() as usize;
+                    assert_eq!(bins.first_hit(p, eye, d, key), brute, "p {p:?} eye {eye:?}");
+                }
+                let key = |fi: u32| {
+                    let [a, b, c] = faces[fi as usize].map(|k| x[k as usize]);
+                    let bary = closest_on_triangle(p, a, b, c);
+                    let q = a * bary[0] + b * bary[1] + c * bary[2];
+                    ((p - q).dot(p - q), bary)
+                };
+                let brute = smallest((0..faces.len() as u32).map(|fi| (fi, Some(key(fi)))));
+                assert_eq!(bins.closest(p, 0.5, key), brute);
+            }
+        }
+        assert!(hits > 300, "{hits} hits");
     }
 }
