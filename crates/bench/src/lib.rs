@@ -14,6 +14,7 @@ pub mod table_diagnose;
 pub mod table_hidden;
 pub mod table_lincomb;
 pub mod table_sparse;
+pub mod table_step_peer;
 pub mod thesis;
 pub mod timing;
 

@@ -34,6 +34,8 @@ pub struct Machine {
     pub eigen: Option<BTreeMap<String, String>>,
     /// numpy's version (`null` when not available)
     pub numpy: Option<String>,
+    /// scikit-fem and scipy versions, when available
+    pub skfem: Option<String>,
     /// where the `thesis_*` fields come from
     pub thesis_hardware: String,
     /// `/proc/loadavg` (1, 5, 15 min) when the run started and ended: other processes

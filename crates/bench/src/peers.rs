@@ -1,8 +1,12 @@
-//! The peer systems: Eigen (C++ programs in `crates/bench/eigen`, built by `eigen/build.sh`)
-//! and numpy (`crates/bench/python/lincomb.py`). Each peer program runs one case with the
-//! timing policy given on its command line and prints one line of `key=value` pairs
-//! (`time_s=... samples=... checksum=...`). A peer that is missing or fails yields `None` and
-//! a note, never an estimate.
+//! The peer systems: Eigen (C++ programs in `crates/bench/eigen`, built by `eigen/build.sh`),
+//! numpy (`crates/bench/python/lincomb.py`) and scikit-fem + scipy
+//! (`crates/bench/python/step_peer.py`), installed by `crates/bench/peers/install.sh`. Each
+//! peer program runs one case and prints one line of `key=value` pairs (`time_s=...
+//! samples=... checksum=...`). A peer that is missing or fails yields `None` and a note, never
+//! an estimate.
+//!
+//! Python: `$PYTHON` when set, else the virtual environment the install script makes
+//! (`target/bench-venv`, or `$CARGO_TARGET_DIR/bench-venv`) when it exists, else `python3`.
 
 use crate::timing::Policy;
 use std::collections::BTreeMap;
@@ -75,6 +79,40 @@ pub fn eigen_build_dir() -> PathBuf {
     target.join("bench-eigen")
 }
 
+/// The python the python peers run with (module docs).
+pub fn python() -> String {
+    if let Ok(p) = std::env::var("PYTHON") {
+        return p;
+    }
+    let venv = eigen_build_dir().with_file_name("bench-venv").join("bin/python");
+    if venv.exists() {
+        return venv.display().to_string();
+    }
+    "python3".to_string()
+}
+
+/// The version strings `import`ing `modules` in `python` prints, or why not.
+fn python_versions(python: &str, modules: &[&str]) -> Result<Vec<String>, String> {
+    let code = format!(
+        "import {m}; print(' '.join(x.__version__ for x in ({m},)))",
+        m = modules.join(", ")
+    );
+    let out = Command::new(python)
+        .args(["-c", &code])
+        .output()
+        .map_err(|e| format!("cannot run {python}: {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "{python} cannot import {} (crates/bench/peers/install.sh installs them)",
+            modules.join(", ")
+        ));
+    }
+    Ok(String::from_utf8_lossy(&out.stdout)
+        .split_whitespace()
+        .map(str::to_string)
+        .collect())
+}
+
 /// The built Eigen programs.
 #[derive(Clone, Debug)]
 pub struct Eigen {
@@ -129,19 +167,12 @@ pub struct Numpy {
 impl Numpy {
     /// Finds `python3` with numpy importable.
     pub fn detect() -> Result<Self, String> {
-        let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".to_string());
+        let python = python();
         let script = crate_dir().join("python/lincomb.py");
         if !script.exists() {
             return Err(format!("{} not found", script.display()));
         }
-        let out = Command::new(&python)
-            .args(["-c", "import numpy; print(numpy.__version__)"])
-            .output()
-            .map_err(|e| format!("cannot run {python}: {e}"))?;
-        if !out.status.success() {
-            return Err(format!("{python} cannot import numpy"));
-        }
-        let version = String::from_utf8_lossy(&out.stdout).trim().to_string();
+        let version = python_versions(&python, &["numpy"])?.join(" ");
         Ok(Self {
             python,
             script,
@@ -159,6 +190,46 @@ impl Numpy {
     }
 }
 
+/// scikit-fem and scipy through python ([`python`]).
+#[derive(Clone, Debug)]
+pub struct Skfem {
+    python: String,
+    script: PathBuf,
+    /// `scikit-fem X scipy Y`
+    pub version: String,
+}
+
+impl Skfem {
+    /// Finds a python with scikit-fem and scipy importable.
+    pub fn detect() -> Result<Self, String> {
+        let python = python();
+        let script = crate_dir().join("python/step_peer.py");
+        if !script.exists() {
+            return Err(format!("{} not found", script.display()));
+        }
+        let v = python_versions(&python, &["skfem", "scipy"])?;
+        let version = format!(
+            "scikit-fem {} scipy {}",
+            v.first().map_or("?", String::as_str),
+            v.get(1).map_or("?", String::as_str)
+        );
+        Ok(Self {
+            python,
+            script,
+            version,
+        })
+    }
+    /// Runs `steps` Newmark steps of the held cuboid at resolution `r` (`step_peer.py`).
+    pub fn step(&self, r: u32, steps: usize, tolerance: f64) -> Result<PeerOutput, String> {
+        let mut cmd = Command::new(&self.python);
+        cmd.arg(&self.script)
+            .arg(r.to_string())
+            .arg(steps.to_string())
+            .arg(format!("{tolerance:e}"));
+        run_parsed(cmd, &format!("python/step_peer.py {r} {steps}"))
+    }
+}
+
 /// The peers available in this run, and why the others are not.
 #[derive(Debug, Default)]
 pub struct Peers {
@@ -166,6 +237,8 @@ pub struct Peers {
     pub eigen: Option<Eigen>,
     /// numpy, when importable
     pub numpy: Option<Numpy>,
+    /// scikit-fem and scipy, when importable
+    pub skfem: Option<Skfem>,
     /// notes for `machine.notes` (why a peer is missing, failures during the run)
     pub notes: Vec<String>,
 }
@@ -176,7 +249,7 @@ impl Peers {
         let mut p = Peers::default();
         if !use_peers {
             p.notes
-                .push("peers disabled (--no-peers): eigen_s and numpy_f32_s are null".into());
+                .push("peers disabled (--no-peers): the Eigen, numpy and scikit-fem columns are null".into());
             return p;
         }
         match Eigen::build() {
@@ -190,6 +263,12 @@ impl Peers {
             Err(why) => p
                 .notes
                 .push(format!("numpy not available, its columns are null: {why}")),
+        }
+        match Skfem::detect() {
+            Ok(n) => p.skfem = Some(n),
+            Err(why) => p
+                .notes
+                .push(format!("scikit-fem not available, its columns are null: {why}")),
         }
         p
     }

@@ -15,7 +15,7 @@ use bench::report::{col, markdown_table, Fmt};
 use bench::timing::Policy;
 use bench::{
     progress, stream, table_adjoint, table_cuboid, table_diagnose, table_hidden, table_lincomb, table_sparse,
-    thesis, Ctx,
+    table_step_peer, thesis, Ctx,
 };
 use clap::Parser;
 use serde::Serialize;
@@ -72,6 +72,8 @@ struct Tables {
     b5: Option<Vec<table_cuboid::CuboidRow>>,
     #[serde(rename = "B.6", skip_serializing_if = "Option::is_none")]
     b6: Option<Vec<table_cuboid::CuboidRow>>,
+    #[serde(rename = "step-peer", skip_serializing_if = "Option::is_none")]
+    step_peer: Option<Vec<table_step_peer::Row>>,
     #[serde(rename = "5.2", skip_serializing_if = "Option::is_none")]
     t52: Option<Vec<table_adjoint::Row>>,
     #[serde(rename = "D", skip_serializing_if = "Option::is_none")]
@@ -221,6 +223,13 @@ fn targets(tables: &serde_json::Map<String, Value>) -> Value {
             all[key] = at_most(r["seconds"].clone(), r["goal_s"].as_f64().unwrap_or(0.0), what);
         }
     }
+    if tables.contains_key("step-peer") {
+        all["step_peer_linear_speedup"] = target(
+            last("step-peer", "linear_speedup"),
+            5.0,
+            "step-peer largest r: scikit-fem + scipy linear step / our fastest step",
+        );
+    }
     if tables.contains_key("5.2") {
         all["adjoint_backward_over_forward"] = at_most(
             worst_ratio,
@@ -276,6 +285,10 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
     s.push_str(&format!(
         "- numpy: {}\n",
         machine.numpy.as_deref().unwrap_or("not available")
+    ));
+    s.push_str(&format!(
+        "- scikit-fem: {}\n",
+        machine.skfem.as_deref().unwrap_or("not available")
     ));
     s.push_str(&format!("- thesis columns: {}\n", machine.thesis_hardware));
     for n in &machine.notes {
@@ -368,6 +381,9 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
             ));
         }
     }
+    if tables.contains_key("step-peer") {
+        s.push_str(&table_step_peer::markdown(&rows("step-peer")));
+    }
     if tables.contains_key("D") {
         s.push_str(&table_diagnose::markdown(&rows("D")));
     }
@@ -432,7 +448,7 @@ fn main() {
     };
     let load_start = machine::load_average();
 
-    progress("building / detecting peers (Eigen, numpy)");
+    progress("building / detecting peers (Eigen, numpy, scikit-fem)");
     let peers = Peers::detect(!args.no_peers);
     progress("STREAM triad");
     let stream_policy = Policy {
@@ -481,6 +497,7 @@ fn main() {
     }
     let b5 = wanted("B.5").then(|| table_cuboid::table(false, args.quick));
     let b6 = wanted("B.6").then(|| table_cuboid::table(true, args.quick));
+    let step_peer = wanted("step-peer").then(|| table_step_peer::table(&mut ctx));
     let (t52, mut notes52) = match wanted("5.2").then(|| table_adjoint::table(args.quick)) {
         Some((rows, notes)) => (Some(rows), notes),
         None => (None, Vec::new()),
@@ -511,6 +528,7 @@ fn main() {
         b4,
         b5,
         b6,
+        step_peer,
         t52,
         d,
         h,
@@ -542,6 +560,7 @@ fn main() {
         gpumat_build: machine::gpumat_build(),
         eigen: ctx.peers.eigen.as_ref().map(|e| e.info.clone()),
         numpy: ctx.peers.numpy.as_ref().map(|n| n.version.clone()),
+        skfem: ctx.peers.skfem.as_ref().map(|n| n.version.clone()),
         thesis_hardware: thesis::HARDWARE.into(),
         load_average: [load_start, machine::load_average()],
         notes,
