@@ -13,6 +13,7 @@ pub mod table_adjoint;
 pub mod table_diagnose;
 pub mod table_hidden;
 pub mod table_lincomb;
+pub mod table_scaling;
 pub mod table_sparse;
 pub mod table_step_peer;
 pub mod thesis;

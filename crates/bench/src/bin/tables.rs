@@ -14,8 +14,8 @@ use bench::peers::Peers;
 use bench::report::{col, markdown_table, Fmt};
 use bench::timing::Policy;
 use bench::{
-    progress, stream, table_adjoint, table_cuboid, table_diagnose, table_hidden, table_lincomb, table_sparse,
-    table_step_peer, thesis, Ctx,
+    progress, stream, table_adjoint, table_cuboid, table_diagnose, table_hidden, table_lincomb,
+    table_scaling, table_sparse, table_step_peer, thesis, Ctx,
 };
 use clap::Parser;
 use serde::Serialize;
@@ -74,6 +74,8 @@ struct Tables {
     b6: Option<Vec<table_cuboid::CuboidRow>>,
     #[serde(rename = "step-peer", skip_serializing_if = "Option::is_none")]
     step_peer: Option<Vec<table_step_peer::Row>>,
+    #[serde(rename = "scaling", skip_serializing_if = "Option::is_none")]
+    scaling: Option<Vec<table_scaling::Row>>,
     #[serde(rename = "5.2", skip_serializing_if = "Option::is_none")]
     t52: Option<Vec<table_adjoint::Row>>,
     #[serde(rename = "D", skip_serializing_if = "Option::is_none")]
@@ -230,6 +232,23 @@ fn targets(tables: &serde_json::Map<String, Value>) -> Value {
             "step-peer largest r: scikit-fem + scipy linear step / our fastest step",
         );
     }
+    for (key, body) in [
+        ("scaling_cuboid_step_exponent", "cuboid"),
+        ("scaling_bunny_step_exponent", "bunny"),
+    ] {
+        let mut rows = tables
+            .get("scaling")
+            .and_then(|r| r.as_array())
+            .into_iter()
+            .flatten();
+        if let Some(r) = rows.rfind(|r| r["body"] == body) {
+            all[key] = at_most(
+                r["step_exponent"].clone(),
+                1.3,
+                &format!("scaling: exponent p of step time ~ nodes^p, the {body} (default settings)"),
+            );
+        }
+    }
     if tables.contains_key("5.2") {
         all["adjoint_backward_over_forward"] = at_most(
             worst_ratio,
@@ -384,6 +403,9 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
     if tables.contains_key("step-peer") {
         s.push_str(&table_step_peer::markdown(&rows("step-peer")));
     }
+    if tables.contains_key("scaling") {
+        s.push_str(&table_scaling::markdown(&rows("scaling")));
+    }
     if tables.contains_key("D") {
         s.push_str(&table_diagnose::markdown(&rows("D")));
     }
@@ -498,6 +520,7 @@ fn main() {
     let b5 = wanted("B.5").then(|| table_cuboid::table(false, args.quick));
     let b6 = wanted("B.6").then(|| table_cuboid::table(true, args.quick));
     let step_peer = wanted("step-peer").then(|| table_step_peer::table(&mut ctx));
+    let scaling = wanted("scaling").then(|| table_scaling::table(args.quick, &mut ctx.peers.notes));
     let (t52, mut notes52) = match wanted("5.2").then(|| table_adjoint::table(args.quick)) {
         Some((rows, notes)) => (Some(rows), notes),
         None => (None, Vec::new()),
@@ -529,6 +552,7 @@ fn main() {
         b5,
         b6,
         step_peer,
+        scaling,
         t52,
         d,
         h,
