@@ -211,13 +211,17 @@ fn rig(radius: f64) -> RigParams {
 
 /// Noise-free observations of the scene's own simulation, frames 1..=steps, and the eyes of
 /// the cameras.
-fn observe(scene: &Scene, steps: usize, radius: f64) -> Result<(Observations, Vec<[f64; 3]>), String> {
+pub(crate) fn observe(
+    scene: &Scene,
+    steps: usize,
+    radius: f64,
+) -> Result<(Observations, Vec<[f64; 3]>), String> {
     let (obs, cameras) = synthesize(scene, &rig(radius), 0.0, steps, |_, _| {})?;
     Ok((obs, cameras.iter().map(|c| c.camera.eye).collect()))
 }
 
 /// The problem of a scene for `steps` steps with its observations, and the perturbed start.
-fn problem(
+pub(crate) fn problem(
     scene: &Scene,
     obs: &Observations,
     eyes: &[[f64; 3]],

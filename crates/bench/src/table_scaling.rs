@@ -6,6 +6,11 @@
 //! scene's own model and the default solver settings (IC(0), corotation). Per body the
 //! exponent `p` of `time ~ nodes^p` is the least-squares slope of `ln time` against
 //! `ln nodes`, and likewise for the CG iterations per step.
+//!
+//! For the cuboid also a gradient (forward + cost + backward, Table 5.2's problem: Young's
+//! modulus and Poisson ratio, the surface cost of 4 cameras of 32 x 32 pixels, 3 steps) per
+//! step. The bunny's gradient is not timed: its scene reads an SDF file, whose own spacing sets
+//! the grid of a fit (the step rows resample the file).
 
 use crate::progress;
 use crate::report::{col, markdown_table, Col, Fmt};
@@ -34,8 +39,12 @@ pub struct Row {
     pub solve_s: f64,
     /// CG iterations per step
     pub cg_iterations: f64,
+    /// seconds per step of a gradient (forward + cost + backward; the cuboid only)
+    pub gradient_s: Option<f64>,
     /// the body's fitted exponent of step time against nodes (same in every row of the body)
     pub step_exponent: Option<f64>,
+    /// the body's fitted exponent of gradient time against nodes
+    pub gradient_exponent: Option<f64>,
     /// the body's fitted exponent of CG iterations against nodes
     pub iteration_exponent: Option<f64>,
 }
@@ -86,13 +95,37 @@ fn time_steps(body: &str, scene: &Scene, grid: Grid, resolution: f64, steps: usi
         assembly_s: asm / n,
         solve_s: solve / n,
         cg_iterations: its / n,
+        gradient_s: None,
         step_exponent: None,
+        gradient_exponent: None,
         iteration_exponent: None,
     })
 }
 
+/// Seconds per step of the best of two gradients of Table 5.2's problem on `scene` at
+/// `resolution` (after a warm-up gradient).
+fn gradient(scene: &Scene, resolution: f64, steps: usize) -> Result<f64, String> {
+    let mut scene = scene.clone();
+    scene.body.resolution = Some(resolution);
+    let (obs, eyes) = crate::table_adjoint::observe(&scene, steps, 3.0)?;
+    let (mut p, x) = crate::table_adjoint::problem(&scene, &obs, &eyes, steps)?;
+    p.gradient(&x).map_err(|e| format!("warm-up gradient: {e}"))?;
+    let mut best = f64::INFINITY;
+    for _ in 0..2 {
+        let (ev, _, _) = p.gradient(&x).map_err(|e| e.to_string())?;
+        best = best.min(ev.forward_s + ev.cost_s + ev.backward_s);
+    }
+    Ok(best / steps as f64)
+}
+
 /// The rows of one body at `resolutions`, with its exponents.
-fn body_rows(body: &str, scene_file: &str, resolutions: &[f64], steps: usize) -> Result<Vec<Row>, String> {
+fn body_rows(
+    body: &str,
+    scene_file: &str,
+    resolutions: &[f64],
+    steps: usize,
+    gradients: bool,
+) -> Result<Vec<Row>, String> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../..")
         .join(scene_file);
@@ -102,14 +135,23 @@ fn body_rows(body: &str, scene_file: &str, resolutions: &[f64], steps: usize) ->
         progress(&format!("scaling: {body} at {r} cells per unit"));
         let sdf = scene.body_sdf_at(Some(r)).map_err(|e| e.to_string())?;
         let grid = Grid::new(sdf).map_err(|e| e.to_string())?;
-        rows.push(time_steps(body, &scene, grid, r, steps)?);
+        let mut row = time_steps(body, &scene, grid, r, steps)?;
+        if gradients {
+            progress(&format!("scaling: {body} at {r} cells per unit, gradient"));
+            row.gradient_s = Some(gradient(&scene, r, steps)?);
+        }
+        rows.push(row);
     }
     let slope =
         |f: fn(&Row) -> f64| log_slope(&rows.iter().map(|r| (r.nodes as f64, f(r))).collect::<Vec<_>>());
     let (p, q) = (slope(|r| r.step_s), slope(|r| r.cg_iterations));
+    let g = gradients
+        .then(|| slope(|r| r.gradient_s.unwrap_or(0.0)))
+        .flatten();
     for r in &mut rows {
         r.step_exponent = p;
         r.iteration_exponent = q;
+        r.gradient_exponent = g;
     }
     Ok(rows)
 }
@@ -127,11 +169,11 @@ pub fn table(quick: bool, notes: &mut Vec<String>) -> Vec<Row> {
         )
     };
     let mut rows = Vec::new();
-    for (body, scene, res) in [
-        ("cuboid", "examples/scenes/cuboid_dirichlet.toml", cuboid),
-        ("bunny", "examples/scenes/bunny_ground.toml", bunny),
+    for (body, scene, res, gradients) in [
+        ("cuboid", "examples/scenes/cuboid_dirichlet.toml", cuboid, true),
+        ("bunny", "examples/scenes/bunny_ground.toml", bunny, false),
     ] {
-        match body_rows(body, scene, res, 3) {
+        match body_rows(body, scene, res, 3, gradients) {
             Ok(mut r) => rows.append(&mut r),
             Err(e) => {
                 let why = format!("scaling: {body} failed: {e}");
@@ -154,7 +196,9 @@ fn columns() -> Vec<Col> {
         col("assembly ms", "assembly_s", Fmt::SecondsAsMs),
         col("solve ms", "solve_s", Fmt::SecondsAsMs),
         col("CG its", "cg_iterations", Fmt::Ratio),
-        col("p (time ~ nodes^p)", "step_exponent", Fmt::Ratio),
+        col("gradient ms/step", "gradient_s", Fmt::SecondsAsMs),
+        col("p (step ~ nodes^p)", "step_exponent", Fmt::Ratio),
+        col("p (gradient)", "gradient_exponent", Fmt::Ratio),
         col("p (its ~ nodes^p)", "iteration_exponent", Fmt::Ratio),
     ]
 }
@@ -165,8 +209,9 @@ pub fn markdown(rows: &[serde_json::Value]) -> String {
         "Table scaling: step time against the number of active nodes",
         "The scenes' models and default solver settings (block IC(0) CG, relative tolerance 1e-6, \
          corotation; the bunny also meets the ground); seconds per step averaged over 3 steps after \
-         one untimed step. p: least-squares slope of ln(time) (and ln(CG iterations)) against \
-         ln(nodes) over the body's rows.",
+         one untimed step; gradient: forward + cost + backward per step of Table 5.2's problem \
+         (E and nu, 4 cameras of 32 x 32 pixels, 3 steps; the cuboid only). p: least-squares \
+         slope of ln(time) (and ln(CG iterations)) against ln(nodes) over the body's rows.",
         rows,
         &columns(),
     )
@@ -190,9 +235,17 @@ mod tests {
     /// exponent.
     #[test]
     fn rows_grow_with_the_resolution() {
-        let rows = body_rows("cuboid", "examples/scenes/cuboid_dirichlet.toml", &[6.0, 10.0], 1).unwrap();
+        let rows = body_rows(
+            "cuboid",
+            "examples/scenes/cuboid_dirichlet.toml",
+            &[6.0, 10.0],
+            1,
+            true,
+        )
+        .unwrap();
         assert!(rows[1].nodes > rows[0].nodes && rows[1].cells > rows[0].cells);
         assert!(rows.iter().all(|r| r.step_s > 0.0 && r.cg_iterations > 0.0));
-        assert!(rows[0].step_exponent.is_some());
+        assert!(rows.iter().all(|r| r.gradient_s.is_some_and(|g| g > 0.0)));
+        assert!(rows[0].step_exponent.is_some() && rows[0].gradient_exponent.is_some());
     }
 }
