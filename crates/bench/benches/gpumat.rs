@@ -1,6 +1,8 @@
 //! Criterion benchmarks of the thesis' four cuMat cases (Appendix B) at small sizes, so that
-//! `cargo bench --no-run` builds quickly and a run is short. The `tables` binary measures the
-//! full size ranges with the peers.
+//! `cargo bench --no-run` builds quickly and a run is short, and of the two kernels a
+//! simulation spends its time in: the 3x3 block-sparse SpMV on the held cuboid's stiffness
+//! matrix and one whole time step of that cuboid (Table B.5's body). The `tables` binary
+//! measures the full size ranges with the peers.
 
 use bench::lincomb::{fused, unfused};
 use bench::problems::{boundary_rhs, lincomb_inputs, poisson_matrix, random_vector};
@@ -80,11 +82,52 @@ fn b4_cg(c: &mut Criterion) {
     g.finish();
 }
 
+/// The held cuboid of Table B.5 at the thesis' resolution `r` (cells of size 1/(2r)).
+fn cuboid(r: u32) -> cutfem::fem::Simulation {
+    let (shape, model) = cutfem::fem::model::thesis_cuboid(false);
+    let sdf = shape.to_sdf(2.0 * r as f64, 6).expect("cuboid SDF");
+    let grid = cutfem::fem::Grid::new(sdf).expect("cuboid grid");
+    cutfem::fem::Simulation::new(grid, model).expect("cuboid simulation")
+}
+
+/// BSR 3x3 SpMV `y = K x` on the cuboid's stiffness matrix (f64).
+fn bsr_spmv(c: &mut Criterion) {
+    let mut g = c.benchmark_group("BSR spmv cuboid");
+    for r in [5u32, 10] {
+        let sim = cuboid(r);
+        let k = sim.stiffness().clone();
+        let n = k.rows();
+        let x = Matrix::<gpumat::Vec3<f64>>::from_fn(n, 1, 1, |i, _, _| {
+            gpumat::Vec3::new(i as f64 * 1e-3, 1.0, -(i as f64) * 2e-3)
+        });
+        let mut y = Matrix::<gpumat::Vec3<f64>>::zeros(n, 1, 1);
+        // values + column indices + row pointers + x + y
+        let bytes = k.nnz() * (72 + 4) + (n + 1) * 4 + 2 * n * 24;
+        g.throughput(Throughput::Bytes(bytes as u64));
+        g.bench_with_input(BenchmarkId::from_parameter(r), &r, |b, _| {
+            b.iter(|| black_box(&mut y).assign(black_box(&k) * black_box(&x)))
+        });
+    }
+    g.finish();
+}
+
+/// One time step of the held cuboid (corotation, default solver settings).
+fn cutfem_step(c: &mut Criterion) {
+    let mut g = c.benchmark_group("cutfem step cuboid");
+    g.sample_size(10).measurement_time(Duration::from_secs(2));
+    let r = 5u32;
+    let mut sim = cuboid(r);
+    g.bench_with_input(BenchmarkId::from_parameter(r), &r, |b, _| {
+        b.iter(|| sim.step().expect("step"))
+    });
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default()
         .warm_up_time(Duration::from_millis(300))
         .measurement_time(Duration::from_secs(1));
-    targets = b1_lincomb_k2, b2_lincomb_k, b3_spmv, b4_cg
+    targets = b1_lincomb_k2, b2_lincomb_k, b3_spmv, b4_cg, bsr_spmv, cutfem_step
 }
 criterion_main!(benches);
