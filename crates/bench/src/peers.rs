@@ -219,6 +219,14 @@ impl Skfem {
             version,
         })
     }
+    /// Times scipy's BSR and CSR products with the matrix in `file` (`bsr_spmv.py`).
+    pub fn bsr_spmv(&self, file: &str, policy: &Policy) -> Result<PeerOutput, String> {
+        let mut cmd = Command::new(&self.python);
+        cmd.arg(self.script.with_file_name("bsr_spmv.py"))
+            .arg(file)
+            .args(policy.peer_args());
+        run_parsed(cmd, "python/bsr_spmv.py")
+    }
     /// Runs `steps` Newmark steps of the held cuboid at resolution `r` (`step_peer.py`).
     pub fn step(&self, r: u32, steps: usize, tolerance: f64) -> Result<PeerOutput, String> {
         let mut cmd = Command::new(&self.python);

@@ -14,7 +14,7 @@ use bench::peers::Peers;
 use bench::report::{col, markdown_table, Fmt};
 use bench::timing::Policy;
 use bench::{
-    progress, stream, table_adjoint, table_cuboid, table_diagnose, table_hidden, table_lincomb,
+    progress, stream, table_adjoint, table_bsr, table_cuboid, table_diagnose, table_hidden, table_lincomb,
     table_scaling, table_sparse, table_step_peer, thesis, Ctx,
 };
 use clap::Parser;
@@ -66,6 +66,8 @@ struct Tables {
     b2: Option<Vec<table_lincomb::LincombRow>>,
     #[serde(rename = "B.3", skip_serializing_if = "Option::is_none")]
     b3: Option<Vec<table_sparse::SpmvRow>>,
+    #[serde(rename = "B.3-bsr", skip_serializing_if = "Option::is_none")]
+    b3_bsr: Option<Vec<table_bsr::Row>>,
     #[serde(rename = "B.4", skip_serializing_if = "Option::is_none")]
     b4: Option<Vec<table_sparse::CgRow>>,
     #[serde(rename = "B.5", skip_serializing_if = "Option::is_none")]
@@ -225,6 +227,23 @@ fn targets(tables: &serde_json::Map<String, Value>) -> Value {
             all[key] = at_most(r["seconds"].clone(), r["goal_s"].as_f64().unwrap_or(0.0), what);
         }
     }
+    if tables.contains_key("B.3-bsr") {
+        all["bsr_vs_scipy_csr"] = target(
+            last("B.3-bsr", "bsr_vs_scipy_csr"),
+            1.5,
+            "B.3-bsr largest r: scipy CSR time / our BSR time (same matrix)",
+        );
+        all["bsr_vs_scipy_bsr"] = target(
+            last("B.3-bsr", "bsr_vs_scipy_bsr"),
+            1.0,
+            "B.3-bsr largest r: scipy BSR time / our BSR time",
+        );
+        all["bsr_vs_eigen"] = target(
+            last("B.3-bsr", "bsr_vs_eigen"),
+            1.0,
+            "B.3-bsr largest r: Eigen CSR time / our BSR time",
+        );
+    }
     if tables.contains_key("step-peer") {
         all["step_peer_linear_speedup"] = target(
             last("step-peer", "linear_speedup"),
@@ -365,6 +384,9 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
             &rows("B.3"),
             &table_sparse::b3_columns(),
         ));
+    }
+    if tables.contains_key("B.3-bsr") {
+        s.push_str(&table_bsr::markdown(&rows("B.3-bsr")));
     }
     if tables.contains_key("B.4") {
         s.push_str(&markdown_table(
@@ -512,6 +534,7 @@ fn main() {
         let s = resample(&mut stream_runs);
         rows.iter_mut().for_each(|r| r.set_stream(s));
     }
+    let b3_bsr = wanted("B.3-bsr").then(|| table_bsr::table(&mut ctx));
     let mut b4 = wanted("B.4").then(|| table_sparse::table_b4(&mut ctx));
     if let Some(rows) = &mut b4 {
         let s = resample(&mut stream_runs);
@@ -548,6 +571,7 @@ fn main() {
         b1,
         b2,
         b3,
+        b3_bsr,
         b4,
         b5,
         b6,
