@@ -10,6 +10,7 @@ pub mod problems;
 pub mod report;
 pub mod stream;
 pub mod table_adjoint;
+pub mod table_advect;
 pub mod table_bsr;
 pub mod table_diagnose;
 pub mod table_hidden;

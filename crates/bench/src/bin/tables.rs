@@ -14,8 +14,8 @@ use bench::peers::Peers;
 use bench::report::{col, markdown_table, Fmt};
 use bench::timing::Policy;
 use bench::{
-    progress, stream, table_adjoint, table_bsr, table_cuboid, table_diagnose, table_hidden, table_lincomb,
-    table_scaling, table_sparse, table_step_peer, thesis, Ctx,
+    progress, stream, table_adjoint, table_advect, table_bsr, table_cuboid, table_diagnose, table_hidden,
+    table_lincomb, table_scaling, table_sparse, table_step_peer, thesis, Ctx,
 };
 use clap::Parser;
 use serde::Serialize;
@@ -74,6 +74,8 @@ struct Tables {
     b5: Option<Vec<table_cuboid::CuboidRow>>,
     #[serde(rename = "B.6", skip_serializing_if = "Option::is_none")]
     b6: Option<Vec<table_cuboid::CuboidRow>>,
+    #[serde(rename = "4.4", skip_serializing_if = "Option::is_none")]
+    t44: Option<Vec<table_advect::Row>>,
     #[serde(rename = "step-peer", skip_serializing_if = "Option::is_none")]
     step_peer: Option<Vec<table_step_peer::Row>>,
     #[serde(rename = "scaling", skip_serializing_if = "Option::is_none")]
@@ -422,6 +424,9 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
             ));
         }
     }
+    if tables.contains_key("4.4") {
+        s.push_str(&table_advect::markdown(&rows("4.4")));
+    }
     if tables.contains_key("step-peer") {
         s.push_str(&table_step_peer::markdown(&rows("step-peer")));
     }
@@ -542,6 +547,7 @@ fn main() {
     }
     let b5 = wanted("B.5").then(|| table_cuboid::table(false, args.quick));
     let b6 = wanted("B.6").then(|| table_cuboid::table(true, args.quick));
+    let t44 = wanted("4.4").then(|| table_advect::table(args.quick, &mut ctx.peers.notes));
     let step_peer = wanted("step-peer").then(|| table_step_peer::table(&mut ctx));
     let scaling = wanted("scaling").then(|| table_scaling::table(args.quick, &mut ctx.peers.notes));
     let (t52, mut notes52) = match wanted("5.2").then(|| table_adjoint::table(args.quick)) {
@@ -575,6 +581,7 @@ fn main() {
         b4,
         b5,
         b6,
+        t44,
         step_peer,
         scaling,
         t52,
