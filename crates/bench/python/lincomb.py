@@ -5,7 +5,8 @@ every sum is its own pass with a temporary (as in the thesis' numpy column). Inp
 counter-based splitmix64 numbers of crates/bench/src/problems.rs; the timing policy is the one
 of crates/bench/src/timing.rs.
 
-usage: python3 lincomb.py N K BUDGET_S MIN_SAMPLES MAX_SAMPLES MIN_SAMPLE_S
+usage: python3 lincomb.py N K BUDGET_S MIN_SAMPLES MAX_SAMPLES MIN_SAMPLE_S [f32|f64]
+(f64: the same numbers widened to float64, the dtype numpy users get by default)
 prints: time_s=... samples=... inner=... checksum=... numpy=...
 """
 
@@ -53,14 +54,15 @@ def measure(budget, min_samples, max_samples, min_sample, f):
 
 
 def main(argv):
-    if len(argv) != 7:
+    if len(argv) not in (7, 8) or (len(argv) == 8 and argv[7] not in ("f32", "f64")):
         print(__doc__, file=sys.stderr)
         return 2
+    dtype = np.float64 if len(argv) == 8 and argv[7] == "f64" else np.float32
     n, k = int(argv[1]), int(argv[2])
     budget, min_samples, max_samples, min_sample = float(argv[3]), int(argv[4]), int(argv[5]), float(argv[6])
     idx = np.arange(n, dtype=np.uint64)
-    v = [np.float32(2.0) * uniform01(VECTOR_SEED + i, idx) - np.float32(1.0) for i in range(k)]
-    a = [np.float32(x) for x in uniform01(FACTOR_SEED, np.arange(k, dtype=np.uint64))]
+    v = [(np.float32(2.0) * uniform01(VECTOR_SEED + i, idx) - np.float32(1.0)).astype(dtype) for i in range(k)]
+    a = [dtype(x) for x in uniform01(FACTOR_SEED, np.arange(k, dtype=np.uint64))]
     out = {}
 
     def run():
@@ -71,7 +73,7 @@ def main(argv):
 
     best, samples, inner = measure(budget, min_samples, max_samples, min_sample, run)
     d = out["d"]
-    assert d.dtype == np.float32
+    assert d.dtype == dtype
     print(
         f"time_s={best:.9g} samples={samples} inner={inner} "
         f"checksum={float(d.astype(np.float64).sum()):.9g} numpy={np.__version__}"

@@ -179,14 +179,15 @@ impl Numpy {
             version,
         })
     }
-    /// Times the f32 linear combination of `k` vectors of length `n`.
-    pub fn lincomb(&self, n: usize, k: usize, policy: &Policy) -> Result<PeerOutput, String> {
+    /// Times the linear combination of `k` vectors of length `n` in `dtype` (`f32`, `f64`).
+    pub fn lincomb(&self, n: usize, k: usize, dtype: &str, policy: &Policy) -> Result<PeerOutput, String> {
         let mut cmd = Command::new(&self.python);
         cmd.arg(&self.script)
             .arg(n.to_string())
             .arg(k.to_string())
-            .args(policy.peer_args());
-        run_parsed(cmd, &format!("python/lincomb.py {n} {k}"))
+            .args(policy.peer_args())
+            .arg(dtype);
+        run_parsed(cmd, &format!("python/lincomb.py {n} {k} {dtype}"))
     }
 }
 

@@ -33,19 +33,19 @@ pub struct Row {
     pub rows: usize,
     pub nnz: usize,
     /// seconds per product: ours BSR, ours scalar CSR
-    pub ours_bsr_s: f64,
-    pub ours_csr_s: f64,
+    pub gpumat_s: f64,
+    pub gpumat_csr_s: f64,
     /// scipy `bsr_matrix` (blocksize 3) and `csr_matrix` of the same matrix
     pub scipy_bsr_s: Option<f64>,
     pub scipy_csr_s: Option<f64>,
     /// Eigen `SparseMatrix<double, RowMajor>` (OpenMP)
-    pub eigen_csr_s: Option<f64>,
+    pub eigen_s: Option<f64>,
     /// bytes a BSR product moves (values, u32 block columns, row pointers, x, y) and a CSR one
     pub bsr_bytes: usize,
     pub csr_bytes: usize,
     /// GB/s of ours
-    pub ours_bsr_gbs: f64,
-    pub ours_csr_gbs: f64,
+    pub gpumat_gbs: f64,
+    pub gpumat_csr_gbs: f64,
     /// ratios (>1: our BSR faster)
     pub bsr_vs_scipy_csr: Option<f64>,
     pub bsr_vs_scipy_bsr: Option<f64>,
@@ -185,7 +185,7 @@ pub fn row(ctx: &mut Ctx, r: u32) -> Result<Row, String> {
     let csr_bytes = 9 * nnzb * (8 + 4) + (3 * n + 1) * std::mem::size_of::<usize>() + 2 * 24 * n;
     let scipy_bsr_s = scipy.as_ref().and_then(|o| o.f64("time_s"));
     let scipy_csr_s = scipy.as_ref().and_then(|o| o.f64("csr_s"));
-    let eigen_csr_s = eigen.as_ref().and_then(|o| o.f64("time_s"));
+    let eigen_s = eigen.as_ref().and_then(|o| o.f64("time_s"));
     Ok(Row {
         case: format!("res={r}"),
         resolution: r,
@@ -193,18 +193,18 @@ pub fn row(ctx: &mut Ctx, r: u32) -> Result<Row, String> {
         blocks: nnzb,
         rows: 3 * n,
         nnz: 9 * nnzb,
-        ours_bsr_s: tb,
-        ours_csr_s: tc,
+        gpumat_s: tb,
+        gpumat_csr_s: tc,
         scipy_bsr_s,
         scipy_csr_s,
-        eigen_csr_s,
+        eigen_s,
         bsr_bytes,
         csr_bytes,
-        ours_bsr_gbs: bsr_bytes as f64 / tb / 1e9,
-        ours_csr_gbs: csr_bytes as f64 / tc / 1e9,
+        gpumat_gbs: bsr_bytes as f64 / tb / 1e9,
+        gpumat_csr_gbs: csr_bytes as f64 / tc / 1e9,
         bsr_vs_scipy_csr: ratio(scipy_csr_s, Some(tb)),
         bsr_vs_scipy_bsr: ratio(scipy_bsr_s, Some(tb)),
-        bsr_vs_eigen: ratio(eigen_csr_s, Some(tb)),
+        bsr_vs_eigen: ratio(eigen_s, Some(tb)),
         bsr_vs_own_csr: tc / tb,
         results_agree: ok,
     })
@@ -233,13 +233,13 @@ pub fn columns() -> Vec<Col> {
         col("r", "resolution", Fmt::Plain),
         col("block rows", "block_rows", Fmt::Plain),
         col("blocks", "blocks", Fmt::Plain),
-        col("ours BSR ms", "ours_bsr_s", Fmt::SecondsAsMs),
-        col("ours BSR GB/s", "ours_bsr_gbs", Fmt::Gbs),
-        col("ours CSR ms", "ours_csr_s", Fmt::SecondsAsMs),
-        col("ours CSR GB/s", "ours_csr_gbs", Fmt::Gbs),
+        col("ours BSR ms", "gpumat_s", Fmt::SecondsAsMs),
+        col("ours BSR GB/s", "gpumat_gbs", Fmt::Gbs),
+        col("ours CSR ms", "gpumat_csr_s", Fmt::SecondsAsMs),
+        col("ours CSR GB/s", "gpumat_csr_gbs", Fmt::Gbs),
         col("scipy BSR ms", "scipy_bsr_s", Fmt::SecondsAsMs),
         col("scipy CSR ms", "scipy_csr_s", Fmt::SecondsAsMs),
-        col("Eigen CSR ms", "eigen_csr_s", Fmt::SecondsAsMs),
+        col("Eigen CSR ms", "eigen_s", Fmt::SecondsAsMs),
         col("BSR: own CSR / ours", "bsr_vs_own_csr", Fmt::Ratio),
         col("scipy CSR / ours", "bsr_vs_scipy_csr", Fmt::Ratio),
         col("scipy BSR / ours", "bsr_vs_scipy_bsr", Fmt::Ratio),

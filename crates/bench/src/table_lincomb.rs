@@ -28,6 +28,8 @@ pub struct LincombRow {
     pub eigen_s: Option<f64>,
     /// numpy f32, `a0*v0 + a1*v1 + ...` with temporaries
     pub numpy_f32_s: Option<f64>,
+    /// numpy f64 (the same numbers widened; twice the bytes), as numpy users write it
+    pub numpy_f64_s: Option<f64>,
     /// bytes the fused pass moves: `4 (k + 1) n`
     pub bytes: usize,
     /// bytes the unfused passes move: `4 n (3k - 1)`
@@ -48,6 +50,8 @@ pub struct LincombRow {
     /// `unfused_bytes / bytes`: the speedup fusion gives when every pass streams from DRAM
     /// (less when the destination stays in cache between the unfused passes)
     pub traffic_ratio: f64,
+    /// `fused_speedup / traffic_ratio`: the fraction of the fusion ceiling reached
+    pub fraction_of_fusion_ceiling: f64,
     /// `eigen_s / gpumat_s` (> 1: gpumat faster)
     pub speedup_vs_eigen: Option<f64>,
     /// `numpy_f32_s / gpumat_s`
@@ -73,7 +77,7 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
     let mut d = Matrix::<f32>::zeros(n, 1, 1);
     let mut du = Matrix::<f32>::zeros(n, 1, 1);
     let case = vec![n.to_string(), k.to_string()];
-    let (mut mf, mut mu, mut eigen, mut numpy) = (None, None, None, None);
+    let (mut mf, mut mu, mut eigen, mut numpy, mut numpy64) = (None, None, None, None, None);
     // Rounds side by side: fused, unfused, Eigen, numpy in turn, each keeping its best.
     for _ in 0..p.rounds.max(1) {
         let m = measure_interleaved(
@@ -88,8 +92,11 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
         if let Some(r) = ctx.peers.eigen.as_ref().map(|e| e.run("lincomb", &case, &one)) {
             eigen = PeerOutput::faster(eigen, ctx.peers.take(r));
         }
-        if let Some(r) = ctx.peers.numpy.as_ref().map(|np| np.lincomb(n, k, &one)) {
+        if let Some(r) = ctx.peers.numpy.as_ref().map(|np| np.lincomb(n, k, "f32", &one)) {
             numpy = PeerOutput::faster(numpy, ctx.peers.take(r));
+        }
+        if let Some(r) = ctx.peers.numpy.as_ref().map(|np| np.lincomb(n, k, "f64", &one)) {
+            numpy64 = PeerOutput::faster(numpy64, ctx.peers.take(r));
         }
     }
     let (mf, mu) = (mf.expect("one round"), mu.expect("one round"));
@@ -103,7 +110,7 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
     let agree = |s: Option<f64>| s.map_or(true, |s| (s - fused_sum).abs() <= 1e-4 * scale);
     let mut ok = agree(Some(checksum(du.as_slice())));
     drop((vs, d, du));
-    for (name, out) in [("eigen", &eigen), ("numpy", &numpy)] {
+    for (name, out) in [("eigen", &eigen), ("numpy", &numpy), ("numpy f64", &numpy64)] {
         if let Some(o) = out {
             if !agree(o.f64("checksum")) {
                 ok = false;
@@ -116,6 +123,7 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
     }
     let eigen_s = eigen.and_then(|o| o.f64("time_s"));
     let numpy_s = numpy.and_then(|o| o.f64("time_s"));
+    let numpy64_s = numpy64.and_then(|o| o.f64("time_s"));
     let bytes = fused_bytes(n, k);
     let ubytes = unfused_bytes(n, k);
     let gbs = bytes as f64 / mf.seconds / 1e9;
@@ -127,6 +135,7 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
         gpumat_unfused_s: mu.seconds,
         eigen_s,
         numpy_f32_s: numpy_s,
+        numpy_f64_s: numpy64_s,
         bytes,
         unfused_bytes: ubytes,
         gpumat_gbs: gbs,
@@ -136,6 +145,7 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
         fraction_of_stream: gbs / ctx.stream_gbs,
         fused_speedup: mu.seconds / mf.seconds,
         traffic_ratio: ubytes as f64 / bytes as f64,
+        fraction_of_fusion_ceiling: (mu.seconds / mf.seconds) / (ubytes as f64 / bytes as f64),
         speedup_vs_eigen: ratio(eigen_s, Some(mf.seconds)),
         speedup_vs_numpy: ratio(numpy_s, Some(mf.seconds)),
         results_agree: ok,
@@ -186,10 +196,12 @@ pub fn columns(first: Col) -> Vec<Col> {
         col("unfused ms", "gpumat_unfused_s", Fmt::SecondsAsMs),
         col("Eigen ms", "eigen_s", Fmt::SecondsAsMs),
         col("numpy f32 ms", "numpy_f32_s", Fmt::SecondsAsMs),
+        col("numpy f64 ms", "numpy_f64_s", Fmt::SecondsAsMs),
         col("gpumat GB/s", "gpumat_gbs", Fmt::Gbs),
         col("of STREAM", "fraction_of_stream", Fmt::Percent),
         col("fused speedup", "fused_speedup", Fmt::Ratio),
         col("traffic ratio", "traffic_ratio", Fmt::Ratio),
+        col("of fusion ceiling", "fraction_of_fusion_ceiling", Fmt::Percent),
         col("vs Eigen", "speedup_vs_eigen", Fmt::Ratio),
         col("thesis cuBLAS ms", "thesis_cublas_ms", Fmt::Ms),
         col("thesis cuMat ms", "thesis_cumat_ms", Fmt::Ms),

@@ -43,46 +43,46 @@ pub struct Row {
     /// CG relative tolerance of both sides
     pub cg_tolerance: f64,
     /// ours: active cells, unknowns (3 per active node)
-    pub ours_cells: usize,
-    pub ours_unknowns: usize,
+    pub cutfem_cells: usize,
+    pub cutfem_unknowns: usize,
     /// ours, linear model: seconds per step in assembly (the pass over cells and rows)
-    pub ours_assembly_s: f64,
+    pub cutfem_assembly_s: f64,
     /// ours, linear model, factor reuse off: seconds per step (whole step) per preconditioner
-    pub ours_block_jacobi_step_s: f64,
-    pub ours_block_ic0_step_s: f64,
-    pub ours_rest_cholesky_step_s: f64,
+    pub cutfem_block_jacobi_step_s: f64,
+    pub cutfem_block_ic0_step_s: f64,
+    pub cutfem_rest_cholesky_step_s: f64,
     /// ours, CG iterations per step per preconditioner
-    pub ours_block_jacobi_iterations: f64,
-    pub ours_block_ic0_iterations: f64,
-    pub ours_rest_cholesky_iterations: f64,
+    pub cutfem_block_jacobi_iterations: f64,
+    pub cutfem_block_ic0_iterations: f64,
+    pub cutfem_rest_cholesky_iterations: f64,
     /// ours, linear model, default settings: seconds per step (whole step)
-    pub ours_default_step_s: f64,
+    pub cutfem_default_step_s: f64,
     /// ours: the fastest linear step and its configuration
-    pub ours_linear_step_s: f64,
-    pub ours_linear_best: String,
+    pub cutfem_linear_step_s: f64,
+    pub cutfem_linear_best: String,
     /// ours, corotated (default settings): seconds per step
-    pub ours_corotated_step_s: f64,
+    pub cutfem_corotated_step_s: f64,
     /// ours: largest nodal displacement at the end (linear model)
-    pub ours_max_u: f64,
+    pub cutfem_max_u: f64,
     /// peer: cells, unknowns (free dofs)
-    pub peer_cells: Option<usize>,
-    pub peer_unknowns: Option<usize>,
+    pub skfem_cells: Option<usize>,
+    pub skfem_unknowns: Option<usize>,
     /// peer: `K` by skfem's `asm`, seconds (once)
-    pub peer_assembly_s: Option<f64>,
+    pub skfem_assembly_s: Option<f64>,
     /// peer: `A`, `b` and condensation, seconds per step
-    pub peer_system_s: Option<f64>,
+    pub skfem_system_s: Option<f64>,
     /// peer: scipy `cg` (Jacobi), seconds and iterations per step
-    pub peer_cg_s: Option<f64>,
-    pub peer_cg_iterations: Option<f64>,
+    pub skfem_cg_s: Option<f64>,
+    pub skfem_cg_iterations: Option<f64>,
     /// peer: SuperLU solve per step and its one-off factorization
-    pub peer_direct_s: Option<f64>,
-    pub peer_direct_factor_s: Option<f64>,
+    pub skfem_direct_s: Option<f64>,
+    pub skfem_direct_factor_s: Option<f64>,
     /// peer: the linear step (system + the faster of cg and the direct solve)
-    pub peer_linear_step_s: Option<f64>,
+    pub skfem_linear_step_s: Option<f64>,
     /// peer: the reassembling step (asm + system + cg)
-    pub peer_reassembling_step_s: Option<f64>,
+    pub skfem_reassembling_step_s: Option<f64>,
     /// peer: largest nodal displacement at the end
-    pub peer_max_u: Option<f64>,
+    pub skfem_max_u: Option<f64>,
     /// peer linear step / ours (>1: ours faster)
     pub linear_speedup: Option<f64>,
     /// peer reassembling step / our corotated step (>1: ours faster)
@@ -151,8 +151,8 @@ pub fn row(ctx: &mut Ctx, r: u32, steps: usize, tolerance: f64) -> Result<Row, S
         (Some(a), Some(b)) => Some(a.min(b)),
         (a, b) => a.or(b),
     };
-    let peer_linear = get("system_s").zip(solve).map(|(a, b)| a + b);
-    let peer_reassembling = match (get("assembly_s"), get("system_s"), get("cg_s")) {
+    let skfem_linear = get("system_s").zip(solve).map(|(a, b)| a + b);
+    let skfem_reassembling = match (get("assembly_s"), get("system_s"), get("cg_s")) {
         (Some(a), Some(b), Some(c)) => Some(a + b + c),
         _ => None,
     };
@@ -161,33 +161,33 @@ pub fn row(ctx: &mut Ctx, r: u32, steps: usize, tolerance: f64) -> Result<Row, S
         resolution: r,
         steps,
         cg_tolerance: tolerance,
-        ours_cells: grid.cells.len(),
-        ours_unknowns: 3 * grid.dofs(),
-        ours_assembly_s: default.1,
-        ours_block_jacobi_step_s: per[0].0,
-        ours_block_ic0_step_s: per[1].0,
-        ours_rest_cholesky_step_s: per[2].0,
-        ours_block_jacobi_iterations: per[0].2,
-        ours_block_ic0_iterations: per[1].2,
-        ours_rest_cholesky_iterations: per[2].2,
-        ours_default_step_s: default.0,
-        ours_linear_step_s: best.1,
-        ours_linear_best: best.0,
-        ours_corotated_step_s: corot.0,
-        ours_max_u: default.3,
-        peer_cells: geti("cells"),
-        peer_unknowns: geti("dofs"),
-        peer_assembly_s: get("assembly_s"),
-        peer_system_s: get("system_s"),
-        peer_cg_s: get("cg_s"),
-        peer_cg_iterations: get("cg_iterations"),
-        peer_direct_s: get("direct_s"),
-        peer_direct_factor_s: get("direct_factor_s"),
-        peer_linear_step_s: peer_linear,
-        peer_reassembling_step_s: peer_reassembling,
-        peer_max_u: get("max_u"),
-        linear_speedup: ratio(peer_linear, Some(best.1)),
-        reassembling_speedup: ratio(peer_reassembling, Some(corot.0)),
+        cutfem_cells: grid.cells.len(),
+        cutfem_unknowns: 3 * grid.dofs(),
+        cutfem_assembly_s: default.1,
+        cutfem_block_jacobi_step_s: per[0].0,
+        cutfem_block_ic0_step_s: per[1].0,
+        cutfem_rest_cholesky_step_s: per[2].0,
+        cutfem_block_jacobi_iterations: per[0].2,
+        cutfem_block_ic0_iterations: per[1].2,
+        cutfem_rest_cholesky_iterations: per[2].2,
+        cutfem_default_step_s: default.0,
+        cutfem_linear_step_s: best.1,
+        cutfem_linear_best: best.0,
+        cutfem_corotated_step_s: corot.0,
+        cutfem_max_u: default.3,
+        skfem_cells: geti("cells"),
+        skfem_unknowns: geti("dofs"),
+        skfem_assembly_s: get("assembly_s"),
+        skfem_system_s: get("system_s"),
+        skfem_cg_s: get("cg_s"),
+        skfem_cg_iterations: get("cg_iterations"),
+        skfem_direct_s: get("direct_s"),
+        skfem_direct_factor_s: get("direct_factor_s"),
+        skfem_linear_step_s: skfem_linear,
+        skfem_reassembling_step_s: skfem_reassembling,
+        skfem_max_u: get("max_u"),
+        linear_speedup: ratio(skfem_linear, Some(best.1)),
+        reassembling_speedup: ratio(skfem_reassembling, Some(corot.0)),
     })
 }
 
@@ -212,31 +212,31 @@ pub fn table(ctx: &mut Ctx) -> Vec<Row> {
 pub fn columns() -> Vec<Col> {
     vec![
         col("r", "resolution", Fmt::Plain),
-        col("ours unknowns", "ours_unknowns", Fmt::Plain),
-        col("peer unknowns", "peer_unknowns", Fmt::Plain),
-        col("ours asm ms", "ours_assembly_s", Fmt::SecondsAsMs),
-        col("ours BJ ms", "ours_block_jacobi_step_s", Fmt::SecondsAsMs),
-        col("BJ its", "ours_block_jacobi_iterations", Fmt::Ratio),
-        col("ours IC0 ms", "ours_block_ic0_step_s", Fmt::SecondsAsMs),
-        col("IC0 its", "ours_block_ic0_iterations", Fmt::Ratio),
-        col("ours RC ms", "ours_rest_cholesky_step_s", Fmt::SecondsAsMs),
-        col("ours default ms", "ours_default_step_s", Fmt::SecondsAsMs),
-        col("ours best", "ours_linear_best", Fmt::Plain),
-        col("peer asm ms (once)", "peer_assembly_s", Fmt::SecondsAsMs),
-        col("peer A,b ms", "peer_system_s", Fmt::SecondsAsMs),
-        col("peer cg ms", "peer_cg_s", Fmt::SecondsAsMs),
-        col("peer cg its", "peer_cg_iterations", Fmt::Ratio),
-        col("peer LU solve ms", "peer_direct_s", Fmt::SecondsAsMs),
+        col("ours unknowns", "cutfem_unknowns", Fmt::Plain),
+        col("peer unknowns", "skfem_unknowns", Fmt::Plain),
+        col("ours asm ms", "cutfem_assembly_s", Fmt::SecondsAsMs),
+        col("ours BJ ms", "cutfem_block_jacobi_step_s", Fmt::SecondsAsMs),
+        col("BJ its", "cutfem_block_jacobi_iterations", Fmt::Ratio),
+        col("ours IC0 ms", "cutfem_block_ic0_step_s", Fmt::SecondsAsMs),
+        col("IC0 its", "cutfem_block_ic0_iterations", Fmt::Ratio),
+        col("ours RC ms", "cutfem_rest_cholesky_step_s", Fmt::SecondsAsMs),
+        col("ours default ms", "cutfem_default_step_s", Fmt::SecondsAsMs),
+        col("ours best", "cutfem_linear_best", Fmt::Plain),
+        col("peer asm ms (once)", "skfem_assembly_s", Fmt::SecondsAsMs),
+        col("peer A,b ms", "skfem_system_s", Fmt::SecondsAsMs),
+        col("peer cg ms", "skfem_cg_s", Fmt::SecondsAsMs),
+        col("peer cg its", "skfem_cg_iterations", Fmt::Ratio),
+        col("peer LU solve ms", "skfem_direct_s", Fmt::SecondsAsMs),
         col(
             "peer LU factor ms (once)",
-            "peer_direct_factor_s",
+            "skfem_direct_factor_s",
             Fmt::SecondsAsMs,
         ),
         col("linear: peer / ours", "linear_speedup", Fmt::Ratio),
-        col("ours corot. ms", "ours_corotated_step_s", Fmt::SecondsAsMs),
+        col("ours corot. ms", "cutfem_corotated_step_s", Fmt::SecondsAsMs),
         col("reassembling: peer / ours", "reassembling_speedup", Fmt::Ratio),
-        col("ours max u", "ours_max_u", Fmt::Sci),
-        col("peer max u", "peer_max_u", Fmt::Sci),
+        col("ours max u", "cutfem_max_u", Fmt::Sci),
+        col("peer max u", "skfem_max_u", Fmt::Sci),
     ]
 }
 
@@ -279,9 +279,9 @@ mod tests {
     fn a_missing_peer_leaves_its_columns_null() {
         let mut c = ctx(Peers::default());
         let r = row(&mut c, 3, 2, 1e-6).unwrap();
-        assert!(r.ours_unknowns > 0 && r.ours_linear_step_s > 0.0 && r.ours_corotated_step_s > 0.0);
-        assert!(r.ours_max_u > 0.0, "gravity moves the body");
-        assert!(r.peer_unknowns.is_none() && r.peer_linear_step_s.is_none() && r.peer_max_u.is_none());
+        assert!(r.cutfem_unknowns > 0 && r.cutfem_linear_step_s > 0.0 && r.cutfem_corotated_step_s > 0.0);
+        assert!(r.cutfem_max_u > 0.0, "gravity moves the body");
+        assert!(r.skfem_unknowns.is_none() && r.skfem_linear_step_s.is_none() && r.skfem_max_u.is_none());
         assert!(r.linear_speedup.is_none() && r.reassembling_speedup.is_none());
     }
 
@@ -304,14 +304,14 @@ mod tests {
             ..Peers::default()
         });
         let r = row(&mut c, 5, 4, 1e-8).unwrap();
-        let peer = r.peer_max_u.expect("the peer ran");
-        eprintln!("max u: ours {:.6e}, peer {peer:.6e}", r.ours_max_u);
+        let peer = r.skfem_max_u.expect("the peer ran");
+        eprintln!("max u: ours {:.6e}, peer {peer:.6e}", r.cutfem_max_u);
         assert!(
-            (peer / r.ours_max_u - 1.0).abs() < 0.05,
+            (peer / r.cutfem_max_u - 1.0).abs() < 0.05,
             "ours {} peer {peer}",
-            r.ours_max_u
+            r.cutfem_max_u
         );
-        assert!(r.peer_cg_iterations.is_some_and(|i| i > 1.0));
+        assert!(r.skfem_cg_iterations.is_some_and(|i| i > 1.0));
         assert!(r.linear_speedup.is_some_and(|s| s > 0.0));
     }
 }
