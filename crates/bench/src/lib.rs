@@ -45,6 +45,28 @@ pub fn ratio(a: Option<f64>, b: Option<f64>) -> Option<f64> {
     }
 }
 
+/// The rows `row(ctx, r)` of the thesis' resolutions `r = 10, 20` (`--quick`: 10); a row that
+/// fails is left out and named in the notes (`table`: the table's id).
+pub fn resolution_rows<R>(
+    ctx: &mut Ctx,
+    table: &str,
+    mut row: impl FnMut(&mut Ctx, u32) -> Result<R, String>,
+) -> Vec<R> {
+    let rs: &[u32] = if ctx.quick { &[10] } else { &[10, 20] };
+    let mut rows = Vec::new();
+    for &r in rs {
+        match row(ctx, r) {
+            Ok(row) => rows.push(row),
+            Err(e) => {
+                let why = format!("{table} r={r} failed: {e}");
+                eprintln!("warning: {why}");
+                ctx.peers.notes.push(why);
+            }
+        }
+    }
+    rows
+}
+
 /// Progress line on stderr.
 pub fn progress(msg: &str) {
     eprintln!("[tables] {msg}");

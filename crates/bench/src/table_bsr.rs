@@ -212,19 +212,7 @@ pub fn row(ctx: &mut Ctx, r: u32) -> Result<Row, String> {
 
 /// The table: r = 10 and 20 (`--quick`: 10).
 pub fn table(ctx: &mut Ctx) -> Vec<Row> {
-    let rs: &[u32] = if ctx.quick { &[10] } else { &[10, 20] };
-    let mut rows = Vec::new();
-    for &r in rs {
-        match row(ctx, r) {
-            Ok(row) => rows.push(row),
-            Err(e) => {
-                let why = format!("B.3-bsr r={r} failed: {e}");
-                eprintln!("warning: {why}");
-                ctx.peers.notes.push(why);
-            }
-        }
-    }
-    rows
+    crate::resolution_rows(ctx, "B.3-bsr", row)
 }
 
 /// The markdown columns.

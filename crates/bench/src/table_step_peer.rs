@@ -193,19 +193,7 @@ pub fn row(ctx: &mut Ctx, r: u32, steps: usize, tolerance: f64) -> Result<Row, S
 
 /// The table: r = 10 and 20 (`--quick`: 10), 5 steps each, tolerance 1e-6.
 pub fn table(ctx: &mut Ctx) -> Vec<Row> {
-    let resolutions: &[u32] = if ctx.quick { &[10] } else { &[10, 20] };
-    let mut rows = Vec::new();
-    for &r in resolutions {
-        match row(ctx, r, 5, 1e-6) {
-            Ok(row) => rows.push(row),
-            Err(e) => {
-                let why = format!("step-peer r={r} failed: {e}");
-                eprintln!("warning: {why}");
-                ctx.peers.notes.push(why);
-            }
-        }
-    }
-    rows
+    crate::resolution_rows(ctx, "step-peer", |ctx, r| row(ctx, r, 5, 1e-6))
 }
 
 /// The markdown columns.
