@@ -220,6 +220,16 @@ impl Skfem {
             version,
         })
     }
+    /// Times scipy on the `g x g` Poisson matrix: `mode` `spmv` (Table B.3) or `cg` (B.4)
+    /// (`sparse2d.py`).
+    pub fn sparse2d(&self, mode: &str, g: usize, policy: &Policy) -> Result<PeerOutput, String> {
+        let mut cmd = Command::new(&self.python);
+        cmd.arg(self.script.with_file_name("sparse2d.py"))
+            .arg(mode)
+            .arg(g.to_string())
+            .args(policy.peer_args());
+        run_parsed(cmd, &format!("python/sparse2d.py {mode} {g}"))
+    }
     /// Times scipy's BSR and CSR products with the matrix in `file` (`bsr_spmv.py`).
     pub fn bsr_spmv(&self, file: &str, policy: &Policy) -> Result<PeerOutput, String> {
         let mut cmd = Command::new(&self.python);

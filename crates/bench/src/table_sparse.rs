@@ -1,5 +1,5 @@
 //! Tables B.3 (CSR SpMV on the 2D Poisson matrix) and B.4 (Jacobi-preconditioned CG on 2D
-//! diffusion), f32, gpumat and Eigen.
+//! diffusion), f32, gpumat, Eigen and scipy (`crates/bench/python/sparse2d.py`).
 
 use crate::peers::PeerOutput;
 use crate::problems::{boundary_rhs, checksum, poisson_matrix, random_vector, SPMV_X_SEED};
@@ -44,6 +44,8 @@ pub struct SpmvRow {
     pub gpumat_s: f64,
     /// Eigen `y.noalias() = a * x` (row-major, int indices, OpenMP)
     pub eigen_s: Option<f64>,
+    /// scipy `csr_matrix @ x` (f32, one thread)
+    pub scipy_s: Option<f64>,
     /// bytes of gpumat's product (its index widths as stored in `SparsityPattern`)
     pub bytes: usize,
     /// bytes of Eigen's product (4-byte indices)
@@ -61,7 +63,9 @@ pub struct SpmvRow {
     pub eigen_fraction_of_stream: Option<f64>,
     /// `eigen_s / gpumat_s`
     pub speedup_vs_eigen: Option<f64>,
-    /// Eigen's `sum(y)` matches gpumat's
+    /// `scipy_s / gpumat_s`
+    pub speedup_vs_scipy: Option<f64>,
+    /// Eigen's and scipy's `sum(y)` match gpumat's
     pub results_agree: bool,
     /// thesis, cuSPARSE on a GTX 1060, ms
     pub thesis_cusparse_ms: Option<f64>,
@@ -80,12 +84,15 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
     let n = g * g;
     let x = random_vector(SPMV_X_SEED, n);
     let mut y = Matrix::<f32>::zeros(n, 1, 1);
-    let (mut m, mut eigen) = (None, None);
+    let (mut m, mut eigen, mut scipy) = (None, None, None);
     for _ in 0..p.rounds.max(1) {
         let mg = measure(&one, || {
             black_box(&mut y).assign(black_box(&a) * black_box(&x));
         });
         m = Some(best_of(m, mg));
+        if let Some(r) = ctx.peers.skfem.as_ref().map(|s| s.sparse2d("spmv", g, &one)) {
+            scipy = PeerOutput::faster(scipy, ctx.peers.take(r));
+        }
         if let Some(r) = ctx
             .peers
             .eigen
@@ -107,16 +114,21 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
     let bytes = gpumat_spmv_bytes(&a);
     drop((a, x, y));
     let mut ok = true;
-    if let Some(o) = &eigen {
-        if o.f64("checksum").map_or(true, |s| (s - sum).abs() > 1e-4 * scale) || o.usize("nnz") != Some(nnz) {
-            ok = false;
-            ctx.peers.notes.push(format!(
-                "spmv g={g}: Eigen's result differs from gpumat's ({:?})",
-                o.0
-            ));
+    for (who, out) in [("Eigen", &eigen), ("scipy", &scipy)] {
+        if let Some(o) = out {
+            if o.f64("checksum").map_or(true, |s| (s - sum).abs() > 1e-4 * scale)
+                || o.usize("nnz") != Some(nnz)
+            {
+                ok = false;
+                ctx.peers.notes.push(format!(
+                    "spmv g={g}: {who}'s result differs from gpumat's ({:?})",
+                    o.0
+                ));
+            }
         }
     }
     let eigen_s = eigen.and_then(|o| o.f64("time_s"));
+    let scipy_s = scipy.and_then(|o| o.f64("time_s"));
     let eigen_bytes = spmv_bytes(n, nnz, 4);
     let gbs = bytes as f64 / m.seconds / 1e9;
     let eigen_gbs = eigen_s.map(|t| eigen_bytes as f64 / t / 1e9);
@@ -128,6 +140,7 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
         nnz,
         gpumat_s: m.seconds,
         eigen_s,
+        scipy_s,
         bytes,
         eigen_bytes,
         gpumat_gbs: gbs,
@@ -136,6 +149,7 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
         fraction_of_stream: gbs / ctx.stream_gbs,
         eigen_fraction_of_stream: eigen_gbs.map(|b| b / ctx.stream_gbs),
         speedup_vs_eigen: ratio(eigen_s, Some(m.seconds)),
+        speedup_vs_scipy: ratio(scipy_s, Some(m.seconds)),
         results_agree: ok,
         thesis_cusparse_ms: th.map(|t| t.0),
         thesis_cumat_ms: th.map(|t| t.1),
@@ -191,8 +205,16 @@ pub struct CgRow {
     pub eigen_per_iteration_s: Option<f64>,
     /// Eigen's final relative residual (`cg.error()`)
     pub eigen_residual: Option<f64>,
+    /// scipy: `scipy.sparse.linalg.cg` with a Jacobi `LinearOperator`, setup + solve
+    pub scipy_s: Option<f64>,
+    /// scipy's iterations (updates of x, its callback's count)
+    pub scipy_iterations: Option<usize>,
+    /// `scipy_s / scipy_iterations`
+    pub scipy_per_iteration_s: Option<f64>,
     /// `eigen_s / gpumat_s`
     pub speedup_vs_eigen: Option<f64>,
+    /// `scipy_s / gpumat_s`
+    pub speedup_vs_scipy: Option<f64>,
     /// `eigen_per_iteration_s / gpumat_per_iteration_s` (>= 1: gpumat's iteration is no slower)
     pub per_iteration_speedup_vs_eigen: Option<f64>,
     /// bytes one gpumat CG iteration moves: its SpMV (indices as stored) and 7 vector passes
@@ -235,8 +257,11 @@ pub fn cg_row(ctx: &mut Ctx, g: usize) -> CgRow {
         min_samples: p.min_samples.min(3),
         ..p
     };
-    let (mut m, mut eigen) = (None, None);
+    let (mut m, mut eigen, mut scipy) = (None, None, None);
     for _ in 0..p.rounds.max(1) {
+        if let Some(r) = ctx.peers.skfem.as_ref().map(|s| s.sparse2d("cg", g, &one)) {
+            scipy = PeerOutput::faster(scipy, ctx.peers.take(r));
+        }
         let mg = measure(&one, || {
             let pre = Jacobi::new(black_box(&a)).expect("the Poisson matrix has a positive diagonal");
             x.as_mut_slice().fill(0.0);
@@ -272,6 +297,19 @@ pub fn cg_row(ctx: &mut Ctx, g: usize) -> CgRow {
             .notes
             .push(format!("cg g={g}: Eigen's right-hand side differs"));
     }
+    if let Some(o) = &scipy {
+        let same = o
+            .f64("rhs_checksum")
+            .is_some_and(|s| (s - rhs_sum).abs() <= 1e-6 * rhs_sum.abs());
+        if !same || o.usize("converged") != Some(1) {
+            ctx.peers.notes.push(format!(
+                "cg g={g}: scipy solved another system or did not converge ({:?})",
+                o.0
+            ));
+        }
+    }
+    let scipy_s = scipy.as_ref().and_then(|o| o.f64("time_s"));
+    let scipy_its = scipy.as_ref().and_then(|o| o.usize("iterations"));
     let its = info.iterations[0];
     let per_it = m.seconds / its.max(1) as f64;
     let eigen_s = eigen.as_ref().and_then(|o| o.f64("time_s"));
@@ -301,7 +339,11 @@ pub fn cg_row(ctx: &mut Ctx, g: usize) -> CgRow {
         eigen_reported_iterations: eigen.as_ref().and_then(|o| o.usize("iterations")),
         eigen_per_iteration_s: eigen_per_it,
         eigen_residual: eigen.as_ref().and_then(|o| o.f64("error")),
+        scipy_s,
+        scipy_iterations: scipy_its,
+        scipy_per_iteration_s: scipy_s.zip(scipy_its).map(|(t, i)| t / i.max(1) as f64),
         speedup_vs_eigen: ratio(eigen_s, Some(m.seconds)),
+        speedup_vs_scipy: ratio(scipy_s, Some(m.seconds)),
         per_iteration_speedup_vs_eigen: ratio(eigen_per_it, Some(per_it)),
         bytes: bytes_it,
         eigen_bytes: spmv_bytes(n, nnz, 4) + 4 * 17 * n,
@@ -343,11 +385,13 @@ pub fn b3_columns() -> Vec<Col> {
         col("nnz", "nnz", Fmt::Plain),
         col("gpumat ms", "gpumat_s", Fmt::SecondsAsMs),
         col("Eigen ms", "eigen_s", Fmt::SecondsAsMs),
+        col("scipy ms", "scipy_s", Fmt::SecondsAsMs),
         col("gpumat GB/s", "gpumat_gbs", Fmt::Gbs),
         col("of STREAM", "fraction_of_stream", Fmt::Percent),
         col("Eigen GB/s", "eigen_gbs", Fmt::Gbs),
         col("Eigen of STREAM", "eigen_fraction_of_stream", Fmt::Percent),
         col("vs Eigen", "speedup_vs_eigen", Fmt::Ratio),
+        col("vs scipy", "speedup_vs_scipy", Fmt::Ratio),
         col("thesis cuSPARSE ms", "thesis_cusparse_ms", Fmt::Ms),
         col("thesis cuMat ms", "thesis_cumat_ms", Fmt::Ms),
         col("thesis Eigen ms", "thesis_eigen_ms", Fmt::Ms),
@@ -365,6 +409,10 @@ pub fn b4_columns() -> Vec<Col> {
         col("Eigen its", "eigen_iterations", Fmt::Plain),
         col("Eigen ms/it", "eigen_per_iteration_s", Fmt::SecondsAsMs),
         col("per-it vs Eigen", "per_iteration_speedup_vs_eigen", Fmt::Ratio),
+        col("scipy ms", "scipy_s", Fmt::SecondsAsMs),
+        col("scipy its", "scipy_iterations", Fmt::Plain),
+        col("scipy ms/it", "scipy_per_iteration_s", Fmt::SecondsAsMs),
+        col("vs scipy", "speedup_vs_scipy", Fmt::Ratio),
         col("gpumat GB/s", "gpumat_gbs", Fmt::Gbs),
         col("of STREAM", "fraction_of_stream", Fmt::Percent),
         col("thesis cuMat ms", "thesis_cumat_ms", Fmt::Ms),

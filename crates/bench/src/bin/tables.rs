@@ -386,7 +386,7 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
             "Table B.3: CSR SpMV, 5-point 2D Poisson matrix of a g x g grid, f32",
             "bytes = values + column indices + row pointers + x + y, as each side stores them \
              (gpumat: `SparsityPattern`'s index types; Eigen: 4-byte int); each side's GB/s counts \
-             its own bytes.",
+             its own bytes. scipy: `csr_matrix @ x` (f32, one thread).",
             &rows("B.3"),
             &table_sparse::b3_columns(),
         ));
@@ -400,7 +400,8 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
             "Times are preconditioner setup + solve; per-iteration = total / iterations; iterations = \
              updates of x for both (Eigen's own `iterations()` is one less: it leaves out the converging \
              one). gpumat: `Jacobi` + `gpumat::cg`; Eigen: `ConjugateGradient<RowMajor, Lower|Upper, \
-             DiagonalPreconditioner>`.",
+             DiagonalPreconditioner>`; scipy: `scipy.sparse.linalg.cg` with a Jacobi `LinearOperator`, \
+             iterations counted by its callback.",
             &rows("B.4"),
             &table_sparse::b4_columns(),
         ));
