@@ -1,7 +1,8 @@
 //! Table B.3-bsr: the SpMV a simulation runs, `y = K x` with the held cuboid's stiffness matrix
 //! (Table B.5's body at the thesis' resolution r, f64), as 3x3 blocks (BSR) and as the same
 //! matrix in scalar CSR, ours against scipy's `bsr_matrix` and `csr_matrix` and Eigen's
-//! row-major `SparseMatrix` (Eigen has no block format). This shows what blocking buys.
+//! row-major `SparseMatrix` (Eigen has no block format) and faer's CSR product (in-process).
+//! This shows what blocking buys.
 //!
 //! The matrix goes to the peers through a file (`target/bench-data/cuboid_k_r{r}.bin`,
 //! little-endian: `u64` block rows `n`, `u64` blocks `nnz`, `u64` row pointers `[n + 1]`, `u32`
@@ -40,6 +41,8 @@ pub struct Row {
     pub scipy_csr_s: Option<f64>,
     /// Eigen `SparseMatrix<double, RowMajor>` (OpenMP)
     pub eigen_s: Option<f64>,
+    /// faer `sparse_dense_matmul` with the scalar CSR (`Par::rayon(0)`, in-process)
+    pub faer_s: f64,
     /// bytes a BSR product moves (values, u32 block columns, row pointers, x, y) and a CSR one
     pub bsr_bytes: usize,
     pub csr_bytes: usize,
@@ -50,6 +53,7 @@ pub struct Row {
     pub bsr_vs_scipy_csr: Option<f64>,
     pub bsr_vs_scipy_bsr: Option<f64>,
     pub bsr_vs_eigen: Option<f64>,
+    pub bsr_vs_faer: f64,
     /// what blocking buys us: ours CSR / ours BSR
     pub bsr_vs_own_csr: f64,
     /// every side's `sum(y)` agrees with ours to 1e-9 relative
@@ -135,7 +139,9 @@ pub fn row(ctx: &mut Ctx, r: u32) -> Result<Row, String> {
     write(&k, &path)?;
     let p = ctx.policy;
     let one = Policy { rounds: 1, ..p };
-    let (mut mb, mut mc) = (None, None);
+    let cf = csr.to_faer_csr(0);
+    let mut yf = faer::Mat::<f64>::zeros(3 * n, 1);
+    let (mut mb, mut mc, mut mf) = (None, None, None);
     let (mut scipy, mut eigen): (Option<PeerOutput>, Option<PeerOutput>) = (None, None);
     let file = path.display().to_string();
     for _ in 0..p.rounds.max(1) {
@@ -147,6 +153,10 @@ pub fn row(ctx: &mut Ctx, r: u32) -> Result<Row, String> {
             mc,
             measure(&one, || black_box(&mut yc).assign(black_box(&csr) * &xc)),
         ));
+        let m = measure(&one, || {
+            crate::table_sparse::faer_spmv(yf.as_mut(), cf.as_ref(), xc.faer_ref(0), 1.0)
+        });
+        mf = Some(best_of(mf, m));
         if let Some(s) = ctx.peers.skfem.clone() {
             let o = ctx.peers.take(s.bsr_spmv(&file, &one));
             scipy = PeerOutput::faster(scipy, o);
@@ -168,7 +178,9 @@ pub fn row(ctx: &mut Ctx, r: u32) -> Result<Row, String> {
         .max(1e-300);
     let own_csr: f64 = yc.as_slice().iter().sum();
     let agrees = |s: Option<f64>| s.is_some_and(|s| (s - sum).abs() <= 1e-9 * scale);
-    let mut ok = agrees(Some(own_csr));
+    let faer_sum: f64 = (0..3 * n).map(|i| yf[(i, 0)]).sum();
+    let mut ok = agrees(Some(own_csr)) && agrees(Some(faer_sum));
+    let tf = mf.expect("a round").seconds;
     for (who, o) in [("scipy", &scipy), ("Eigen", &eigen)] {
         if let Some(o) = o {
             if !agrees(o.f64("checksum")) {
@@ -198,6 +210,7 @@ pub fn row(ctx: &mut Ctx, r: u32) -> Result<Row, String> {
         scipy_bsr_s,
         scipy_csr_s,
         eigen_s,
+        faer_s: tf,
         bsr_bytes,
         csr_bytes,
         gpumat_gbs: bsr_bytes as f64 / tb / 1e9,
@@ -205,6 +218,7 @@ pub fn row(ctx: &mut Ctx, r: u32) -> Result<Row, String> {
         bsr_vs_scipy_csr: ratio(scipy_csr_s, Some(tb)),
         bsr_vs_scipy_bsr: ratio(scipy_bsr_s, Some(tb)),
         bsr_vs_eigen: ratio(eigen_s, Some(tb)),
+        bsr_vs_faer: tf / tb,
         bsr_vs_own_csr: tc / tb,
         results_agree: ok,
     })
@@ -228,10 +242,12 @@ pub fn columns() -> Vec<Col> {
         col("scipy BSR ms", "scipy_bsr_s", Fmt::SecondsAsMs),
         col("scipy CSR ms", "scipy_csr_s", Fmt::SecondsAsMs),
         col("Eigen CSR ms", "eigen_s", Fmt::SecondsAsMs),
+        col("faer CSR ms", "faer_s", Fmt::SecondsAsMs),
         col("BSR: own CSR / ours", "bsr_vs_own_csr", Fmt::Ratio),
         col("scipy CSR / ours", "bsr_vs_scipy_csr", Fmt::Ratio),
         col("scipy BSR / ours", "bsr_vs_scipy_bsr", Fmt::Ratio),
         col("Eigen / ours", "bsr_vs_eigen", Fmt::Ratio),
+        col("faer / ours", "bsr_vs_faer", Fmt::Ratio),
         col("agree", "results_agree", Fmt::Plain),
     ]
 }
@@ -243,7 +259,7 @@ pub fn markdown(rows: &[serde_json::Value]) -> String {
         "The matrix of Table B.5's body (cells of size 1/(2r), Nitsche hold) as 3x3 blocks (ours: \
          `SparseMatrix<Mat3<f64>>`; scipy: `bsr_matrix`, blocksize 3) and as the same matrix in scalar \
          CSR with every block's 9 entries (ours `SparseMatrix<f64>`, scipy `csr_matrix`, Eigen \
-         `SparseMatrix<double, RowMajor>` with OpenMP). Times per product, the tables' timing policy on \
+         `SparseMatrix<double, RowMajor>` with OpenMP; faer `sparse_dense_matmul` on all threads). Times per product, the tables' timing policy on \
          every side; bytes: values + column indices + row pointers + x + y as stored (CSR: 8-byte values, \
          4-byte columns). scipy runs on one thread.",
         rows,

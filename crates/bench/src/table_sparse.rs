@@ -13,6 +13,24 @@ use std::hint::black_box;
 /// CG relative tolerance (cuMat's benchmark code: `setTolerance(1e-4)`).
 pub const CG_TOLERANCE: f32 = 1e-4;
 
+/// `y = A x` by faer, as a faer user writes it: `sparse_dense_matmul` (with `one` = 1) on all
+/// rayon threads.
+pub fn faer_spmv<T: faer::traits::ComplexField>(
+    y: faer::MatMut<'_, T>,
+    a: faer::sparse::SparseRowMatRef<'_, usize, T>,
+    x: faer::MatRef<'_, T>,
+    one: T,
+) {
+    faer::sparse::linalg::matmul::sparse_dense_matmul(
+        y,
+        faer::Accum::Replace,
+        a,
+        x,
+        one,
+        faer::Par::rayon(0),
+    );
+}
+
 /// Bytes one f32 CSR SpMV moves: values (4), column indices and row pointers (`index` bytes
 /// each), x read once and y written once (4 each). Eigen's are `spmv_bytes(n, nnz, 4)`.
 pub fn spmv_bytes(n: usize, nnz: usize, index: usize) -> usize {
@@ -46,6 +64,8 @@ pub struct SpmvRow {
     pub eigen_s: Option<f64>,
     /// scipy `csr_matrix @ x` (f32, one thread)
     pub scipy_s: Option<f64>,
+    /// faer `sparse_dense_matmul` with the same CSR matrix (`Par::rayon(0)`, in-process)
+    pub faer_s: f64,
     /// bytes of gpumat's product (its index widths as stored in `SparsityPattern`)
     pub bytes: usize,
     /// bytes of Eigen's product (4-byte indices)
@@ -65,7 +85,9 @@ pub struct SpmvRow {
     pub speedup_vs_eigen: Option<f64>,
     /// `scipy_s / gpumat_s`
     pub speedup_vs_scipy: Option<f64>,
-    /// Eigen's and scipy's `sum(y)` match gpumat's
+    /// `faer_s / gpumat_s`
+    pub speedup_vs_faer: f64,
+    /// Eigen's, scipy's and faer's `sum(y)` match gpumat's
     pub results_agree: bool,
     /// thesis, cuSPARSE on a GTX 1060, ms
     pub thesis_cusparse_ms: Option<f64>,
@@ -84,12 +106,16 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
     let n = g * g;
     let x = random_vector(SPMV_X_SEED, n);
     let mut y = Matrix::<f32>::zeros(n, 1, 1);
-    let (mut m, mut eigen, mut scipy) = (None, None, None);
+    let af = a.to_faer_csr(0);
+    let mut yf = faer::Mat::<f32>::zeros(n, 1);
+    let (mut m, mut mf, mut eigen, mut scipy) = (None, None, None, None);
     for _ in 0..p.rounds.max(1) {
         let mg = measure(&one, || {
             black_box(&mut y).assign(black_box(&a) * black_box(&x));
         });
         m = Some(best_of(m, mg));
+        let mfa = measure(&one, || faer_spmv(yf.as_mut(), af.as_ref(), x.faer_ref(0), 1.0));
+        mf = Some(best_of(mf, mfa));
         if let Some(r) = ctx.peers.skfem.as_ref().map(|s| s.sparse2d("spmv", g, &one)) {
             scipy = PeerOutput::faster(scipy, ctx.peers.take(r));
         }
@@ -113,7 +139,14 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
     let nnz = a.nnz();
     let bytes = gpumat_spmv_bytes(&a);
     drop((a, x, y));
-    let mut ok = true;
+    let faer_sum: f64 = (0..n).map(|i| yf[(i, 0)] as f64).sum();
+    let mut ok = (faer_sum - sum).abs() <= 1e-4 * scale;
+    if !ok {
+        ctx.peers.notes.push(format!(
+            "spmv g={g}: faer's sum(y) {faer_sum} differs from gpumat's {sum}"
+        ));
+    }
+    let faer_s = mf.expect("one round").seconds;
     for (who, out) in [("Eigen", &eigen), ("scipy", &scipy)] {
         if let Some(o) = out {
             if o.f64("checksum").map_or(true, |s| (s - sum).abs() > 1e-4 * scale)
@@ -141,6 +174,7 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
         gpumat_s: m.seconds,
         eigen_s,
         scipy_s,
+        faer_s,
         bytes,
         eigen_bytes,
         gpumat_gbs: gbs,
@@ -150,6 +184,7 @@ pub fn spmv_row(ctx: &mut Ctx, g: usize) -> SpmvRow {
         eigen_fraction_of_stream: eigen_gbs.map(|b| b / ctx.stream_gbs),
         speedup_vs_eigen: ratio(eigen_s, Some(m.seconds)),
         speedup_vs_scipy: ratio(scipy_s, Some(m.seconds)),
+        speedup_vs_faer: faer_s / m.seconds,
         results_agree: ok,
         thesis_cusparse_ms: th.map(|t| t.0),
         thesis_cumat_ms: th.map(|t| t.1),
@@ -392,6 +427,8 @@ pub fn b3_columns() -> Vec<Col> {
         col("Eigen of STREAM", "eigen_fraction_of_stream", Fmt::Percent),
         col("vs Eigen", "speedup_vs_eigen", Fmt::Ratio),
         col("vs scipy", "speedup_vs_scipy", Fmt::Ratio),
+        col("faer ms", "faer_s", Fmt::SecondsAsMs),
+        col("vs faer", "speedup_vs_faer", Fmt::Ratio),
         col("thesis cuSPARSE ms", "thesis_cusparse_ms", Fmt::Ms),
         col("thesis cuMat ms", "thesis_cumat_ms", Fmt::Ms),
         col("thesis Eigen ms", "thesis_eigen_ms", Fmt::Ms),
