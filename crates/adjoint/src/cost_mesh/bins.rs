@@ -154,6 +154,19 @@ impl FaceBins {
         }
     }
 
+    /// The distance from `p` to the box of the stored cells (0 inside).
+    fn box_distance(&self, p: [f64; 3]) -> f64 {
+        (0..3)
+            .map(|a| {
+                let lo = self.lo[a] as f64 * self.cell;
+                let hi = (self.lo[a] + self.dims[a]) as f64 * self.cell;
+                (lo - p[a]).max(p[a] - hi).max(0.0)
+            })
+            .map(|d| d * d)
+            .sum::<f64>()
+            .sqrt()
+    }
+
     /// The cell of point `p`.
     fn cell_of(&self, p: [f64; 3]) -> [i64; 3] {
         p.map(|v| (v / self.cell).floor() as i64)
@@ -174,7 +187,9 @@ impl FaceBins {
         mut key: impl FnMut(u32) -> (f64, [f64; 3]),
     ) -> Best {
         let pa = p.to_array();
-        if pa.iter().any(|v| !v.is_finite()) || self.faces.is_empty() {
+        // no stored face lies within `limit` of a point farther than that from their box (this
+        // also keeps the cell indices of absurdly far points out of the arithmetic below)
+        if pa.iter().any(|v| !v.is_finite()) || self.faces.is_empty() || self.box_distance(pa) > limit {
             return None;
         }
         let c = self.cell_of(pa);
@@ -234,7 +249,15 @@ impl FaceBins {
         d: Vec3<f64>,
         mut key: impl FnMut(u32) -> Option<(f64, [f64; 3])>,
     ) -> Best {
-        if self.faces.is_empty() {
+        let finite = |v: Vec3<f64>| v.to_array().iter().all(|x| x.is_finite());
+        // a hit lies on a stored face, inside their box, and in the block, whose points lie
+        // within 3 sqrt(3) < 6 block bins of p: none when p is farther than that from the box
+        // (which also keeps absurdly far points out of the arithmetic below)
+        let width = 6.0 * self.size;
+        if self.faces.is_empty()
+            || !(finite(p) && finite(o) && finite(d))
+            || self.box_distance(p.to_array()) > width
+        {
             return None;
         }
         let c = self.block_of(p.to_array());
@@ -459,6 +482,44 @@ mod tests {
                 prop_assert_eq!(bins.first_hit(p, eye, d, key), brute);
             }
         }
+    }
+
+    /// Points absurdly far from the faces, or not finite, find nothing (and do not overflow
+    /// the cell arithmetic); the faces stay found from near points.
+    #[test]
+    fn far_and_non_finite_points_find_nothing() {
+        let x = [v([0.0, 0.0, 0.0]), v([0.1, 0.0, 0.0]), v([0.0, 0.1, 0.0])];
+        let faces = faces_of(&x);
+        let bins = FaceBins::new(&faces, &x, 0.05);
+        let key = |p: Vec3<f64>| {
+            move |_fi: u32| {
+                let bary = closest_on_triangle(p, x[0], x[1], x[2]);
+                let q = x[0] * bary[0] + x[1] * bary[1] + x[2] * bary[2];
+                ((p - q).dot(p - q), bary)
+            }
+        };
+        let ray = |fi: u32| {
+            ray_triangle(v([0.02, 0.02, 1.0]), v([0.0, 0.0, -1.0]), x[0], x[1], x[2]).filter(|_| fi == 0)
+        };
+        for far in [1e300, -1e300, 1e18, f64::MAX, f64::NAN, f64::INFINITY] {
+            let p = v([far, 0.02, 0.0]);
+            assert_eq!(bins.closest(p, 0.1, key(p)), None, "{far}");
+            assert_eq!(
+                bins.first_hit(p, v([0.02, 0.02, 1.0]), v([0.0, 0.0, -1.0]), ray),
+                None,
+                "{far}"
+            );
+            assert_eq!(
+                bins.first_hit(v([0.02, 0.02, 0.0]), p, v([0.0, 0.0, -1.0]), ray),
+                None,
+                "{far}"
+            );
+        }
+        let p = v([0.02, 0.02, 0.0]);
+        assert!(bins.closest(p, 0.1, key(p)).is_some());
+        assert!(bins
+            .first_hit(p, v([0.02, 0.02, 1.0]), v([0.0, 0.0, -1.0]), ray)
+            .is_some());
     }
 
     /// Rays along cell boundaries and through cell corners of a grid-aligned mesh (the plane
