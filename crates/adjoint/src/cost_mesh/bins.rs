@@ -98,10 +98,12 @@ impl FaceBins {
         if boxed.is_empty() {
             (lo, hi) = ([0; 3], [-1; 3]);
         }
-        let dims: [i64; 3] = std::array::from_fn(|d| (hi[d] - lo[d] + 1).max(0));
-        if dims.iter().map(|&n| n as f64).product::<f64>() > cap {
+        // (in i128: faces far apart put the cell indices near the ends of i64)
+        let span: [i128; 3] = std::array::from_fn(|d| (hi[d] as i128 - lo[d] as i128 + 1).max(0));
+        if span.iter().map(|&n| n as f64).product::<f64>() > cap {
             return None;
         }
+        let dims = span.map(|n| n as i64);
         let mut out = Self {
             size,
             cell,
@@ -481,6 +483,31 @@ mod tests {
                 let brute = brute_first_hit(&faces, &x, &bins, p, eye, d);
                 prop_assert_eq!(bins.first_hit(p, eye, d, key), brute);
             }
+        }
+    }
+
+    /// Faces absurdly far apart (each small and finite) are stored in coarser cells, and found.
+    #[test]
+    fn faces_far_apart_are_stored_and_found() {
+        for far in [1e300, -1e300, 1e15, f64::MAX / 4.0] {
+            let x = [
+                v([0.0, 0.0, 0.0]),
+                v([0.1, 0.0, 0.0]),
+                v([0.0, 0.1, 0.0]),
+                v([far, 0.0, 0.0]),
+                v([far, 0.1, 0.0]),
+                v([far, 0.0, 0.1]),
+            ];
+            let faces = faces_of(&x);
+            let bins = FaceBins::new(&faces, &x, 0.05);
+            let p = v([0.02, 0.02, 0.01]);
+            let key = |fi: u32| {
+                let [a, b, c] = faces[fi as usize].map(|i| x[i as usize]);
+                let bary = closest_on_triangle(p, a, b, c);
+                let q = a * bary[0] + b * bary[1] + c * bary[2];
+                ((p - q).dot(p - q), bary)
+            };
+            assert_eq!(bins.closest(p, 0.1, key).map(|b| b.1), Some(0), "{far}");
         }
     }
 
