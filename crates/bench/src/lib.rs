@@ -18,6 +18,7 @@ pub mod table_lincomb;
 pub mod table_scaling;
 pub mod table_sparse;
 pub mod table_step_peer;
+pub mod targets;
 pub mod thesis;
 pub mod timing;
 
