@@ -63,6 +63,8 @@ pub struct SurfaceCost {
     /// the last located hits of each frame, with the displacement and reach they were located
     /// for ([`SurfaceCost::residuals`])
     located: Mutex<Vec<Located>>,
+    /// the most bytes of located hits kept (default [`LOCATED_BYTES`])
+    pub located_budget: usize,
 }
 
 /// The hits of one frame for one displacement: a Gauss-Newton matrix asks for the frames of
@@ -75,6 +77,19 @@ struct Located {
     u: Vec<Vec3<f64>>,
     hits: Vec<Option<MeshHit>>,
 }
+
+impl Located {
+    /// Heap bytes held.
+    fn bytes(&self) -> usize {
+        self.u.len() * std::mem::size_of::<Vec3<f64>>()
+            + self.hits.len() * std::mem::size_of::<Option<MeshHit>>()
+    }
+}
+
+/// The most bytes of located hits a surface cost keeps ([`SurfaceCost::residuals`]): 64 MB,
+/// the frames of a typical fit (a 30-step torus keeps about 1 MB per frame), not those of a
+/// 300-step dragon gradient, whose stored trajectory is the memory that must stay.
+pub const LOCATED_BYTES: usize = 64 << 20;
 
 /// The degrees of freedom that move one surface vertex, `u = sum w_i u_i` (unused entries:
 /// [`INACTIVE`], weight 0).
@@ -216,6 +231,7 @@ impl SurfaceCost {
             robust,
             outside_residual: 2.0 * h,
             located: Mutex::new(Vec::new()),
+            located_budget: LOCATED_BYTES,
         })
     }
 
@@ -332,7 +348,9 @@ impl SurfaceCost {
 
     /// Residuals of `frame` (outside points: `None`). The last hits of each frame are kept
     /// with their displacement: asked again for the same `u` (equal to the bit) and reach, the
-    /// frame is not searched again.
+    /// frame is not searched again. The kept hits are bounded ([`LOCATED_BYTES`]): a frame
+    /// beyond the budget is not kept (the frames kept first stay), so a long run's memory
+    /// grows by its stored trajectory only.
     pub fn residuals(&self, frame: usize, u: &Matrix<Vec3<f64>>) -> Vec<Option<MeshHit>> {
         let (us, reach) = (u.as_slice(), self.outside_residual);
         let bits = |v: &Vec3<f64>| v.to_array().map(f64::to_bits);
@@ -355,9 +373,18 @@ impl SurfaceCost {
         let mut cache = self.cache();
         match cache.iter_mut().find(|l| l.frame == frame) {
             Some(l) => *l = entry,
-            None => cache.push(entry),
+            None => {
+                if cache.iter().map(Located::bytes).sum::<usize>() + entry.bytes() <= self.located_budget {
+                    cache.push(entry);
+                }
+            }
         }
         hits
+    }
+
+    /// Bytes of located hits kept now.
+    pub fn kept_bytes(&self) -> usize {
+        self.cache().iter().map(Located::bytes).sum()
     }
 
     /// The located hits (a poisoned lock only means another thread panicked mid-update of a

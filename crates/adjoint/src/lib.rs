@@ -49,6 +49,7 @@ pub mod params;
 pub mod problem;
 pub mod refine;
 pub mod statistics;
+pub mod study;
 pub mod tangent;
 pub mod taylor;
 

@@ -79,27 +79,53 @@ pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<
         return Ok(None);
     }
     let rwr: f64 = ev.frames.iter().map(|f| f.weighted_squared).sum();
-    let s2 = rwr / (n - p) as f64;
     // the evaluation's own matrix when it made one (the same bits as a new pass at `x`)
     let h = match &ev.gauss_newton {
         Some(h) if h.len() == p * p => h.clone(),
         _ => problem.gauss_newton_matrix(x)?,
     };
-    let Some(inv) = invert_small(&h, p) else {
-        return Ok(None);
-    };
     let model = problem.model_at(x);
     let scales = problem.params.x_scales(&model);
+    Ok(uncertainty_of(&h, rwr, n, scales, problem.params.labels()))
+}
+
+/// The covariance `s^2 H^{-1}` and standard errors (module docs) from the Gauss-Newton matrix
+/// `h` (`p x p`, row-major), `r^T W r` and the count `n` over the same points, the coordinates'
+/// scales and labels: the arithmetic of [`uncertainty`], shared with the joint fits of a study
+/// ([`crate::study`]). `None` when `n <= p` or `h` is singular.
+pub fn uncertainty_of(
+    h: &[f64],
+    rwr: f64,
+    n: usize,
+    scales: Vec<f64>,
+    labels: Vec<String>,
+) -> Option<Uncertainty> {
+    let p = scales.len();
+    if n <= p || h.len() != p * p {
+        return None;
+    }
+    let s2 = rwr / (n - p) as f64;
+    let inv = invert_small(h, p)?;
     let cov_x: Vec<f64> = inv.iter().map(|v| v * s2).collect();
     let std_errors = (0..p)
         .map(|k| scales[k] * cov_x[k * p + k].max(0.0).sqrt())
         .collect();
-    Ok(Some(Uncertainty {
-        labels: problem.params.labels(),
+    Some(Uncertainty {
+        labels,
         std_errors,
         cov_x,
         scales,
         residual_variance: s2,
         points: n,
-    }))
+    })
+}
+
+impl Uncertainty {
+    /// The correlation of coordinates `i` and `j`: `Cov_ij / sqrt(Cov_ii Cov_jj)` of the
+    /// reported quantities (the sign follows the scales'); NaN when a variance is 0.
+    pub fn correlation(&self, i: usize, j: usize) -> f64 {
+        let p = self.scales.len();
+        let c = |a: usize, b: usize| self.scales[a] * self.scales[b] * self.cov_x[a * p + b];
+        c(i, j) / (c(i, i) * c(j, j)).sqrt()
+    }
 }

@@ -395,6 +395,22 @@ fn kept_hits_equal_a_fresh_search() {
             "frame {frame}, state {state}, reach {reach}"
         );
     }
+    assert!(kept.kept_bytes() > 0);
+    // within a budget: frames beyond it are searched afresh (same hits), the kept bytes stay
+    // within it and a kept frame is still replaced
+    let mut bounded = SurfaceCost::new(&g, frames.clone(), Robust::Squared).unwrap();
+    let fresh = SurfaceCost::new(&g, frames.clone(), Robust::Squared).unwrap();
+    bounded.residuals(2, &states[2]);
+    let one = bounded.kept_bytes();
+    assert!(one > 0);
+    bounded.located_budget = one;
+    for (frame, state) in [(5, 5), (2, 5), (5, 5), (2, 2)] {
+        assert_eq!(
+            bounded.residuals(frame, &states[state]),
+            fresh.residuals(frame, &states[state])
+        );
+        assert_eq!(bounded.kept_bytes(), one, "frame {frame}, state {state}");
+    }
 }
 
 /// An external force `sum_k c_k F_k` with the wind's three surface-traction fields

@@ -3,6 +3,7 @@
 //! report writers. The `tables` binary ties them together; the criterion suite
 //! (`benches/gpumat.rs`) reuses the same kernels at small sizes.
 
+pub mod figures;
 pub mod lincomb;
 pub mod machine;
 pub mod peers;

@@ -179,6 +179,13 @@ pub struct MemoryRow {
     /// whether the peak was reset before the gradient (`/proc/self/clear_refs`), so that it
     /// counts the gradient only
     pub peak_reset: Option<bool>,
+    /// the same gradient over the first half of the steps (a second child): its peak, MB
+    pub half_peak_rss_mb: Option<f64>,
+    /// peak memory per stored step: the peaks' difference over the steps' difference
+    /// (`(peak(steps) - peak(steps / 2)) / (steps - steps / 2)`), MB
+    pub peak_mb_per_step: Option<f64>,
+    /// the stored trajectory per step by count (`trajectory_mb / (steps + 1)`), MB
+    pub trajectory_mb_per_step: Option<f64>,
     /// thesis (sec. 5.7, GTX 1060): memory of the 300-step dragon adjoint, MB
     pub thesis_peak_mb: f64,
 }
@@ -331,17 +338,19 @@ fn memory(steps: usize) -> (MemoryRow, String) {
         thesis_peak_mb: THESIS_DRAGON_300_MB,
         ..MemoryRow::default()
     };
-    let csv = std::env::temp_dir().join(format!("tables-5.2-{}.csv", std::process::id()));
-    let run = || -> Result<serde_json::Value, String> {
+    let csv =
+        |steps: usize| std::env::temp_dir().join(format!("tables-5.2-{}-{steps}.csv", std::process::id()));
+    // one child per step count, each on observations of its own length
+    let child = |steps: usize| -> Result<serde_json::Value, String> {
         let scene = load(&BODIES[2])?;
         observe(&scene, steps, BODIES[2].radius)?
             .0
-            .write_csv(&csv)
+            .write_csv(csv(steps))
             .map_err(|e| e.to_string())?;
         let exe = std::env::current_exe().map_err(|e| e.to_string())?;
         let out = std::process::Command::new(exe)
             .arg("--adjoint-memory-child")
-            .arg(&csv)
+            .arg(csv(steps))
             .arg("--adjoint-memory-steps")
             .arg(steps.to_string())
             .stderr(std::process::Stdio::inherit())
@@ -352,10 +361,14 @@ fn memory(steps: usize) -> (MemoryRow, String) {
         }
         serde_json::from_slice(&out.stdout).map_err(|e| format!("the child's report: {e}"))
     };
+    let run = || -> Result<(serde_json::Value, serde_json::Value), String> {
+        Ok((child(steps)?, child(steps / 2)?))
+    };
     let result = run();
-    let _ = std::fs::remove_file(&csv);
+    let _ = std::fs::remove_file(csv(steps));
+    let _ = std::fs::remove_file(csv(steps / 2));
     let note = match result {
-        Ok(v) => {
+        Ok((v, half)) => {
             let f = |k: &str| v.get(k).and_then(serde_json::Value::as_f64);
             row.dofs = v
                 .get("dofs")
@@ -367,15 +380,24 @@ fn memory(steps: usize) -> (MemoryRow, String) {
             row.trajectory_mb = f("trajectory_mb");
             row.gradient_s = f("gradient_s");
             row.peak_reset = v.get("peak_reset").and_then(serde_json::Value::as_bool);
+            row.half_peak_rss_mb = half.get("peak_rss_mb").and_then(serde_json::Value::as_f64);
+            row.peak_mb_per_step = row
+                .peak_rss_mb
+                .zip(row.half_peak_rss_mb)
+                .map(|(p, h)| (p - h) / (steps - steps / 2) as f64);
+            row.trajectory_mb_per_step = row.trajectory_mb.map(|t| t / (steps + 1) as f64);
             format!(
                 "5.2 memory: a {steps}-step dragon gradient in a child process (this binary with a hidden \
                  flag) on observations written by the parent; rss_before = VmRSS after the problem is set \
-                 up, peak = VmHWM at the end of the gradient{}; MB = 1e6 bytes{}",
+                 up, peak = VmHWM at the end of the gradient{}; per stored step = the difference of the \
+                 peaks of a {steps}-step and a {}-step gradient (two children) over the steps' difference; \
+                 MB = 1e6 bytes{}",
                 if row.peak_reset == Some(true) {
                     " (the peak was reset just before the gradient)"
                 } else {
                     " (the peak could not be reset: it includes the set-up)"
                 },
+                steps / 2,
                 if steps < 300 {
                     "; quick mode: fewer steps than the target's 300"
                 } else {
@@ -467,6 +489,8 @@ fn memory_columns() -> Vec<Col> {
         col("peak RSS MB", "peak_rss_mb", Fmt::Gbs),
         col("gradient MB", "gradient_mb", Fmt::Gbs),
         col("trajectory MB", "trajectory_mb", Fmt::Gbs),
+        col("peak MB per step", "peak_mb_per_step", Fmt::Ratio),
+        col("trajectory MB per step", "trajectory_mb_per_step", Fmt::Ratio),
         col("gradient s", "gradient_s", Fmt::Ratio),
         col("peak reset", "peak_reset", Fmt::Plain),
         col("thesis MB", "thesis_peak_mb", Fmt::Gbs),
@@ -487,6 +511,8 @@ pub fn markdown(rows: &[serde_json::Value]) -> String {
         "Table 5.2 (memory): peak resident set of a long dragon gradient (child process)",
         "RSS before = after setting up the problem; peak = VmHWM after the gradient; gradient = \
          peak - before; trajectory = the stored u and v (3 f64 per node, every frame) by count; \
+         peak per step = (peak of this gradient - peak of the same gradient over half the steps) / \
+         the steps' difference, the measured growth of the peak per stored step; \
          MB = 1e6 bytes. Thesis: 540 MB for 300 steps after recomputation (sec. 5.7, thesis, GTX 1060).",
         &mem,
         &memory_columns(),

@@ -1,7 +1,7 @@
 //! Tables B.1 (k = 2, n varies) and B.2 (n = 10^6, k = 1..10): the linear combination
 //! `d = sum_i alpha_i v_i` in f32 with gpumat fused and unfused, Eigen and numpy.
 
-use crate::lincomb::{fused, fused_bytes, unfused, unfused_bytes};
+use crate::lincomb::{faer_ops, fused, fused_bytes, to_faer, unfused, unfused_bytes};
 use crate::peers::PeerOutput;
 use crate::problems::{checksum, lincomb_inputs};
 use crate::report::{col, Col, Fmt};
@@ -26,6 +26,8 @@ pub struct LincombRow {
     pub gpumat_unfused_s: f64,
     /// Eigen expression into a preallocated vector (single-threaded)
     pub eigen_s: Option<f64>,
+    /// faer operators, `Scale(a_i) * &v_i` summed into a new column (in-process)
+    pub faer_s: f64,
     /// numpy f32, `a0*v0 + a1*v1 + ...` with temporaries
     pub numpy_f32_s: Option<f64>,
     /// numpy f64 (the same numbers widened; twice the bytes), as numpy users write it
@@ -56,6 +58,8 @@ pub struct LincombRow {
     pub speedup_vs_eigen: Option<f64>,
     /// `numpy_f32_s / gpumat_s`
     pub speedup_vs_numpy: Option<f64>,
+    /// `faer_s / gpumat_s`
+    pub speedup_vs_faer: f64,
     /// fused, unfused and the peers' results agree (checksums within 1e-4 of sum |d|)
     pub results_agree: bool,
     /// thesis, cuBLAS on a GTX 1060, ms
@@ -76,7 +80,10 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
     let (vs, alphas) = lincomb_inputs(n, k);
     let mut d = Matrix::<f32>::zeros(n, 1, 1);
     let mut du = Matrix::<f32>::zeros(n, 1, 1);
+    let fvs = to_faer(&vs);
+    let mut dfaer = faer::Col::<f32>::zeros(0);
     let case = vec![n.to_string(), k.to_string()];
+    let mut mfaer = None;
     let (mut mf, mut mu, mut eigen, mut numpy, mut numpy64) = (None, None, None, None, None);
     // Rounds side by side: fused, unfused, Eigen, numpy in turn, each keeping its best.
     for _ in 0..p.rounds.max(1) {
@@ -85,10 +92,12 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
             &mut [
                 &mut || fused(black_box(&mut d), black_box(&vs), black_box(&alphas)),
                 &mut || unfused(black_box(&mut du), black_box(&vs), black_box(&alphas)),
+                &mut || dfaer = faer_ops(black_box(&fvs), black_box(&alphas)),
             ],
         );
         mf = Some(best_of(mf, m[0]));
         mu = Some(best_of(mu, m[1]));
+        mfaer = Some(best_of(mfaer, m[2]));
         if let Some(r) = ctx.peers.eigen.as_ref().map(|e| e.run("lincomb", &case, &one)) {
             eigen = PeerOutput::faster(eigen, ctx.peers.take(r));
         }
@@ -99,7 +108,11 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
             numpy64 = PeerOutput::faster(numpy64, ctx.peers.take(r));
         }
     }
-    let (mf, mu) = (mf.expect("one round"), mu.expect("one round"));
+    let (mf, mu, mfaer) = (
+        mf.expect("one round"),
+        mu.expect("one round"),
+        mfaer.expect("one round"),
+    );
     let fused_sum = checksum(d.as_slice());
     let scale: f64 = d
         .as_slice()
@@ -108,8 +121,9 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
         .sum::<f64>()
         .max(1e-30);
     let agree = |s: Option<f64>| s.map_or(true, |s| (s - fused_sum).abs() <= 1e-4 * scale);
-    let mut ok = agree(Some(checksum(du.as_slice())));
-    drop((vs, d, du));
+    let faer_sum = checksum(&(0..n).map(|i| dfaer[i]).collect::<Vec<f32>>());
+    let mut ok = agree(Some(checksum(du.as_slice()))) && agree(Some(faer_sum));
+    drop((vs, d, du, fvs, dfaer));
     for (name, out) in [("eigen", &eigen), ("numpy", &numpy), ("numpy f64", &numpy64)] {
         if let Some(o) = out {
             if !agree(o.f64("checksum")) {
@@ -134,6 +148,7 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
         gpumat_s: mf.seconds,
         gpumat_unfused_s: mu.seconds,
         eigen_s,
+        faer_s: mfaer.seconds,
         numpy_f32_s: numpy_s,
         numpy_f64_s: numpy64_s,
         bytes,
@@ -148,6 +163,7 @@ pub fn lincomb_row(ctx: &mut Ctx, n: usize, k: usize, th: Option<(f64, f64, f64,
         fraction_of_fusion_ceiling: (mu.seconds / mf.seconds) / (ubytes as f64 / bytes as f64),
         speedup_vs_eigen: ratio(eigen_s, Some(mf.seconds)),
         speedup_vs_numpy: ratio(numpy_s, Some(mf.seconds)),
+        speedup_vs_faer: mfaer.seconds / mf.seconds,
         results_agree: ok,
         thesis_cublas_ms: th.map(|t| t.0),
         thesis_cumat_ms: th.map(|t| t.1),
@@ -195,6 +211,7 @@ pub fn columns(first: Col) -> Vec<Col> {
         col("gpumat ms", "gpumat_s", Fmt::SecondsAsMs),
         col("unfused ms", "gpumat_unfused_s", Fmt::SecondsAsMs),
         col("Eigen ms", "eigen_s", Fmt::SecondsAsMs),
+        col("faer ms", "faer_s", Fmt::SecondsAsMs),
         col("numpy f32 ms", "numpy_f32_s", Fmt::SecondsAsMs),
         col("numpy f64 ms", "numpy_f64_s", Fmt::SecondsAsMs),
         col("gpumat GB/s", "gpumat_gbs", Fmt::Gbs),
@@ -203,6 +220,7 @@ pub fn columns(first: Col) -> Vec<Col> {
         col("traffic ratio", "traffic_ratio", Fmt::Ratio),
         col("of fusion ceiling", "fraction_of_fusion_ceiling", Fmt::Percent),
         col("vs Eigen", "speedup_vs_eigen", Fmt::Ratio),
+        col("vs faer", "speedup_vs_faer", Fmt::Ratio),
         col("thesis cuBLAS ms", "thesis_cublas_ms", Fmt::Ms),
         col("thesis cuMat ms", "thesis_cumat_ms", Fmt::Ms),
         col("thesis Eigen ms", "thesis_eigen_ms", Fmt::Ms),

@@ -228,11 +228,7 @@ pub fn run(a: Args) -> Result<(), String> {
         "out": out,
         "seconds": t0.elapsed().as_secs_f64(),
     });
-    dir.publish(&mut summary);
-    let path = out.join("demo.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    dir.commit()?;
+    dir.finish(&mut summary, "demo.json")?;
     if a.json {
         crate::output::print_json(&summary)?;
     } else {

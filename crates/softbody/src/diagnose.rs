@@ -276,7 +276,7 @@ pub fn run(args: Args) -> Result<(), String> {
     if observations.is_empty() {
         return Err(format!(
             "{}: no observed points",
-            args.problem.observations.display()
+            args.problem.observations()?.display()
         ));
     }
     let cameras = match &camera_file {

@@ -43,6 +43,13 @@ pub struct Args {
     /// resolution, `adjoint::refine`).
     #[arg(long)]
     pub no_refine_check: bool,
+    /// Fit K times: from the scene's start and from K - 1 seeded Latin-hypercube starts in the
+    /// parameters' plausible box; reports every optimum and whether they agree (docs/study.md).
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u64).range(1..=1000))]
+    pub starts: Option<u64>,
+    /// Seed of the starts (`--starts`).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
     /// Print exactly one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -61,15 +68,15 @@ pub fn per_frame_json(ev: &Evaluation) -> Value {
     )
 }
 
-/// The fit's settings: flags over `[fit]` over the defaults.
-struct Settings {
-    optimizer: Optimizer,
-    iterations: usize,
-    robust: Robust,
+/// The fit's settings: flags over `[fit]` (or a study's `[study]`) over the defaults.
+pub(crate) struct Settings {
+    pub(crate) optimizer: Optimizer,
+    pub(crate) iterations: usize,
+    pub(crate) robust: Robust,
 }
 
 impl Settings {
-    fn new(args: &Args, section: &cutfem::scene::FitSection) -> Result<Self, String> {
+    pub(crate) fn new(args: &Args, section: &cutfem::scene::FitSection) -> Result<Self, String> {
         let optimizer: Optimizer = args
             .optimizer
             .clone()
@@ -162,6 +169,12 @@ fn discretisation(
 
 /// Runs `fit`.
 pub fn run(args: Args) -> Result<(), String> {
+    if crate::study_fit::is_study_file(&args.problem.scene) {
+        return crate::study_fit::run(&args);
+    }
+    if args.starts.is_some() {
+        return crate::study_fit::run_scene(&args);
+    }
     let t0 = Instant::now();
     let Loaded {
         scene,
@@ -176,7 +189,7 @@ pub fn run(args: Args) -> Result<(), String> {
     if obs.is_empty() {
         return Err(format!(
             "{}: no observed points",
-            args.problem.observations.display()
+            args.problem.observations()?.display()
         ));
     }
     let target = args
@@ -213,7 +226,7 @@ pub fn run(args: Args) -> Result<(), String> {
     )?;
 
     // the start: rms per frame before fitting (and the observations' sanity)
-    let ev_initial = check_observations(&mut problem, &obs, &args.problem.observations)?;
+    let ev_initial = check_observations(&mut problem, &obs, args.problem.observations()?)?;
 
     let bar = progress::bar(settings.iterations as u64 + 1, "fit", args.json);
     let fitted = run_logged(
@@ -278,11 +291,7 @@ pub fn run(args: Args) -> Result<(), String> {
     let hist = history_path(&args.problem.scene);
     append(&hist, &entry)?;
     summary["history_file"] = json!(hist);
-    dir.publish(&mut summary);
-    let path = out.join("fit.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&summary).expect("json"))
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    dir.commit()?;
+    dir.finish(&mut summary, "fit.json")?;
     if args.json {
         crate::output::print_json(&summary)?;
     } else {

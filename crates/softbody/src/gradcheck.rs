@@ -87,7 +87,7 @@ pub fn run(args: Args) -> Result<(), String> {
         &eyes,
     )?;
     problem.sim.solver.direct = true;
-    adjoint::fit::check_observations(&mut problem, &obs, &args.problem.observations)?;
+    adjoint::fit::check_observations(&mut problem, &obs, args.problem.observations()?)?;
     let rows = gradcheck(&mut problem, &steps)?;
     let worst = rows.iter().map(|r| r.rel_error).fold(0.0, f64::max);
     let non_smooth: Vec<&str> = rows

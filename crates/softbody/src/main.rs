@@ -13,14 +13,14 @@ mod gradcheck;
 mod observe;
 mod out_dir;
 mod output;
-#[allow(dead_code)]
-mod plot;
 mod problem_args;
 mod progress;
 mod refine_check;
 mod simulate;
+mod study_fit;
 
 use clap::{Parser, Subcommand};
+use softbody::plot;
 use std::process::ExitCode;
 
 /// Physically based reconstruction of elastic soft bodies.

@@ -210,6 +210,20 @@ impl OutDir {
         walk(v, &tmp, &target);
     }
 
+    /// Finishes a report: rewrites the paths of `summary` to their final place ([`publish`]),
+    /// writes it as `file` (pretty JSON) into the folder and moves the folder into place
+    /// ([`commit`]).
+    ///
+    /// [`publish`]: OutDir::publish
+    /// [`commit`]: OutDir::commit
+    pub fn finish(self, summary: &mut Value, file: &str) -> Result<(), String> {
+        self.publish(summary);
+        let path = self.tmp.join(file);
+        std::fs::write(&path, serde_json::to_string_pretty(summary).expect("json"))
+            .map_err(|e| format!("{}: {e}", self.target.join(file).display()))?;
+        self.commit()
+    }
+
     /// The earlier run's file `name` to continue from: in the temporary folder of the newest
     /// run that was killed (it has the latest state), else in the target; `None` when neither
     /// has it.

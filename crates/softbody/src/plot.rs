@@ -17,7 +17,7 @@ mod tests;
 
 pub use axis::Axis;
 use axis::{fmt_compact, padded};
-pub(crate) use canvas::{Canvas, SvgCanvas};
+pub use canvas::{Canvas, SvgCanvas};
 pub use canvas::{Picture, Svg};
 use cutfem::render::{Image, GLYPH_HEIGHT};
 use raster::{tw, Layer, Plot};
@@ -418,7 +418,7 @@ fn draw_legend(img: &mut impl Canvas, p: &Plot, entries: &[Entry]) {
 }
 
 /// A chart: drawn once on any [`Canvas`], rendered as a raster image, as SVG, or as both.
-pub(crate) trait Figure {
+pub trait Figure {
     /// Width and height in pixels.
     fn size(&self) -> (usize, usize);
     /// Draws the figure on `c` (of the figure's size, white).
@@ -490,7 +490,7 @@ impl Chart {
     /// Draws the chart on `img` (of the chart's size): white background, grid, frame, tick
     /// labels, reference lines, series, legend (in the corner with the least data), title and
     /// axis labels.
-    pub(crate) fn draw(&self, img: &mut impl Canvas) {
+    pub fn draw(&self, img: &mut impl Canvas) {
         if self.width == 0 || self.height == 0 {
             return;
         }
@@ -512,7 +512,7 @@ impl BarChart {
     /// Draws the bars on `img` (of the chart's size; value labels on top, category labels
     /// below: smaller or rotated when they don't fit), reference lines with a legend, title and
     /// y label.
-    pub(crate) fn draw(&self, img: &mut impl Canvas) {
+    pub fn draw(&self, img: &mut impl Canvas) {
         let (w, h, s) = (self.width, self.height, scale_for(self.width, self.height));
         if w == 0 || h == 0 {
             return;

@@ -11,11 +11,12 @@ use std::path::PathBuf;
 /// The arguments naming a reconstruction problem.
 #[derive(clap::Args, Debug)]
 pub struct ProblemArgs {
-    /// The scene file (TOML): the model to fit and its starting values.
+    /// The scene file (TOML): the model to fit and its starting values (`fit` also takes a
+    /// study file of several recordings, docs/study.md).
     pub scene: PathBuf,
-    /// Observed surface points (CSV: frame,x,y,z[,camera][,weight]).
+    /// Observed surface points (CSV: frame,x,y,z[,camera][,weight]); required with a scene.
     #[arg(long)]
-    pub observations: PathBuf,
+    pub observations: Option<PathBuf>,
     /// Parameters, comma separated (default: [fit].parameters, else young,poisson).
     #[arg(long)]
     pub params: Option<String>,
@@ -58,28 +59,30 @@ impl ProblemArgs {
     /// must be able to inform a fit ([`Observations::check_informative`]) and the camera file
     /// must name every camera they use ([`CameraFile::check_used`]).
     pub fn load(&self) -> Result<Loaded, String> {
+        if crate::study_fit::is_study_file(&self.scene) {
+            return Err(format!(
+                "{}: a study file (several recordings); only `softbody fit` takes studies, this command takes one scene",
+                self.scene.display()
+            ));
+        }
+        let obs_path = self.observations()?;
         let scene = Scene::load(&self.scene).map_err(|e| e.to_string())?;
         let n_steps = steps(self.steps, &scene)?;
         let section = scene.fit.clone().unwrap_or_default();
-        let names: Vec<String> = match (&self.params, &section.parameters) {
-            (Some(p), _) => vec![p.clone()],
-            (None, Some(p)) => p.clone(),
-            (None, None) => vec!["young,poisson".into()],
-        };
-        let params = ParamSet::parse(&names).map_err(|e| format!("--params: {e}"))?;
+        let params = self.params(&section)?;
         let kind: CostKind = self.cost.parse().map_err(|e| format!("--cost: {e}"))?;
-        let observations = Observations::read_csv(&self.observations).map_err(|e| e.to_string())?;
-        check_frames(&observations, &self.observations, n_steps)?;
+        let observations = Observations::read_csv(obs_path).map_err(|e| e.to_string())?;
+        check_frames(&observations, obs_path, n_steps)?;
         // data that cannot inform a fit are refused here, for every command
-        observations.check_informative(&self.observations, n_steps)?;
+        observations.check_informative(obs_path, n_steps)?;
         let path = match &self.cameras {
             Some(p) => Some(p.clone()),
-            None => Some(cameras_path(&self.observations)).filter(|p| p.exists()),
+            None => Some(cameras_path(obs_path)).filter(|p| p.exists()),
         };
         let cameras = match path {
             Some(p) => {
                 let file = CameraFile::read(&p)?;
-                file.check_used(&observations, &self.observations)?;
+                file.check_used(&observations, obs_path)?;
                 Some(file)
             }
             None => None,
@@ -93,6 +96,29 @@ impl ProblemArgs {
             observations,
             eyes,
             cameras,
+        })
+    }
+}
+
+impl ProblemArgs {
+    /// The fitted parameters: `--params`, else the scene's `[fit].parameters`, else Young's
+    /// modulus and the Poisson ratio.
+    pub fn params(&self, section: &cutfem::scene::FitSection) -> Result<ParamSet, String> {
+        let names: Vec<String> = match (&self.params, &section.parameters) {
+            (Some(p), _) => vec![p.clone()],
+            (None, Some(p)) => p.clone(),
+            (None, None) => vec!["young,poisson".into()],
+        };
+        ParamSet::parse(&names).map_err(|e| format!("--params: {e}"))
+    }
+
+    /// The observations' path: `--observations`, required with a scene.
+    pub fn observations(&self) -> Result<&std::path::Path, String> {
+        self.observations.as_deref().ok_or_else(|| {
+            format!(
+                "--observations: required with the scene {} (the observed points, CSV: frame,x,y,z[,camera][,weight])",
+                self.scene.display()
+            )
         })
     }
 }

@@ -223,13 +223,7 @@ pub fn run(a: Args) -> Result<(), String> {
     if let Some(r) = refine {
         summary["refine_check"] = r;
     }
-    dir.publish(&mut summary);
-    std::fs::write(
-        out.join("summary.json"),
-        serde_json::to_string_pretty(&summary).expect("json"),
-    )
-    .map_err(|e| format!("{}: {e}", target.join("summary.json").display()))?;
-    dir.commit()?;
+    dir.finish(&mut summary, "summary.json")?;
     if a.json {
         crate::output::print_json(&summary)?;
     } else {

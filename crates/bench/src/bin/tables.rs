@@ -46,9 +46,15 @@ struct Args {
     /// (to redraw its markdown and picture).
     #[arg(long, value_name = "REPORT.json")]
     hidden_rows: Option<std::path::PathBuf>,
-    /// Write the pictures of the tables (Table H: `detection_curves.svg`) into this folder.
+    /// Write the pictures of the tables into this folder: B.1, B.2 and scaling as PNG with an
+    /// SVG twin (`b1_time_vs_n.png`, `b2_time_vs_k.png`, `scaling.png`), Table H as
+    /// `detection_curves.svg`.
     #[arg(long, value_name = "DIR")]
     figures: Option<std::path::PathBuf>,
+    /// Only draw the pictures of an earlier `--json` report into the `--figures` folder
+    /// (nothing is measured).
+    #[arg(long, value_name = "REPORT.json", requires = "figures")]
+    figures_from: Option<std::path::PathBuf>,
     /// Internal: the child process of Table 5.2's memory run (observations CSV).
     #[arg(long, hide = true, requires = "adjoint_memory_steps")]
     adjoint_memory_child: Option<std::path::PathBuf>,
@@ -86,6 +92,32 @@ struct Tables {
     d: Option<Vec<table_diagnose::Row>>,
     #[serde(rename = "H", skip_serializing_if = "Option::is_none")]
     h: Option<Vec<table_hidden::Row>>,
+}
+
+/// Draws the B.1, B.2 and scaling pictures into `dir`, or exits with the error.
+fn write_figures(tables: &serde_json::Map<String, Value>, dir: &std::path::Path) {
+    match bench::figures::write(tables, dir) {
+        Ok(paths) => paths
+            .iter()
+            .for_each(|p| progress(&format!("wrote {}", p.display()))),
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+    }
+}
+
+/// The `tables` object of an earlier `--json` report, or a one-line error.
+fn tables_of_report(path: &std::path::Path) -> Result<serde_json::Map<String, Value>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let v: Value = serde_json::from_str(&text).map_err(|e| format!("{}: not JSON: {e}", path.display()))?;
+    match v.get("tables") {
+        Some(Value::Object(m)) => Ok(m.clone()),
+        _ => Err(format!(
+            "{}: no \"tables\" object (not a `tables --json` report)",
+            path.display()
+        )),
+    }
 }
 
 /// The JSON report: exactly this object is printed with `--json`.
@@ -298,6 +330,16 @@ fn main() {
         }
         return;
     }
+    if let (Some(report), Some(dir)) = (&args.figures_from, &args.figures) {
+        match tables_of_report(report) {
+            Ok(tables) => write_figures(&tables, dir),
+            Err(e) => {
+                eprintln!("error: {e}");
+                std::process::exit(1);
+            }
+        }
+        return;
+    }
     let wanted = |id: &str| args.only.is_empty() || args.only.iter().any(|o| o.eq_ignore_ascii_case(id));
     let policy = if args.quick {
         Policy::quick()
@@ -400,6 +442,9 @@ fn main() {
     let stream_gbs = stream_runs.iter().copied().fold(0.0, f64::max);
     progress(&format!("STREAM triad samples {stream_runs:.1?} GB/s"));
     let tables = typed.values();
+    if let Some(dir) = &args.figures {
+        write_figures(&tables, dir);
+    }
 
     let mut notes = notes();
     if args.quick {

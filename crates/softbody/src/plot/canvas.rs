@@ -9,7 +9,7 @@ use cutfem::render::{font_em_px, Image, GLYPH_HEIGHT};
 use std::fmt::Write;
 
 /// A surface the charts draw on (module docs).
-pub(crate) trait Canvas {
+pub trait Canvas {
     /// The raster picture drawn so far.
     fn image(&self) -> &Image;
     /// A filled rectangle.
@@ -130,7 +130,8 @@ impl Picture {
 }
 
 /// Draws into an image and records SVG elements (module docs).
-pub(crate) struct SvgCanvas {
+#[derive(Debug)]
+pub struct SvgCanvas {
     img: Image,
     body: String,
 }
@@ -162,7 +163,7 @@ fn points(pts: &[Pt]) -> String {
 
 impl SvgCanvas {
     /// A canvas of `width` x `height` filled with `background`.
-    pub(crate) fn new(width: usize, height: usize, background: [u8; 3]) -> Self {
+    pub fn new(width: usize, height: usize, background: [u8; 3]) -> Self {
         let body = format!(
             "<rect width=\"{width}\" height=\"{height}\" fill=\"{}\"/>\n",
             hex(background)
@@ -174,7 +175,7 @@ impl SvgCanvas {
     }
 
     /// The picture in both forms.
-    pub(crate) fn into_picture(self) -> Picture {
+    pub fn into_picture(self) -> Picture {
         let svg = Svg {
             width: self.img.width,
             height: self.img.height,

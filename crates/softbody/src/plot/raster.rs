@@ -35,7 +35,8 @@ pub(super) fn tw(text: &str, scale: usize) -> usize {
 
 /// Coverage (0..1) of one colour over the plot interior, composited once so that a polyline
 /// overlapping itself doesn't darken.
-pub(crate) struct Layer {
+#[derive(Debug)]
+pub struct Layer {
     p: Plot,
     cov: Vec<f32>,
     /// what was drawn, for vector output ([`super::canvas::SvgCanvas`])

@@ -1,0 +1,302 @@
+//! Studies: several recordings of one body fitted jointly (one material for all of them).
+//!
+//! A study file (TOML, `docs/study.md`) names the recordings (a scene, its observations and
+//! optionally its camera file and step count each) and splits the fitted parameters into
+//! those **shared** by every recording (the material, the damping, gravity) and those each
+//! recording has **its own** copy of (its initial velocity, its ground plane):
+//!
+//! ```toml
+//! [study]
+//! shared = ["young", "poisson"]
+//! per_recording = ["initial_velocity"]   # optional
+//!
+//! [[recording]]
+//! name = "drop"                          # optional (default: the scene file's stem)
+//! scene = "drop.toml"
+//! observations = "drop.csv"
+//! ```
+//!
+//! # The joint objective
+//!
+//! With recordings `r = 1..R`, shared coordinates `s` and each recording's own `o_r`, the joint
+//! coordinates are `X = (s, o_1, ..., o_R)` and recording `r` is evaluated at `x_r = (s, o_r)`
+//! (its problem's parameters are the shared ones followed by its own). The cost is the sum
+//! `J(X) = sum_r J_r(x_r)` of the recordings' weighted least-squares costs, so the statistics
+//! of one fit carry over (`crate::statistics`: one unknown `sigma^2` for every point of every
+//! recording). The gradient and the Gauss-Newton matrix are sums with a block structure:
+//!
+//! ```text
+//! dJ/ds = sum_r dJ_r/ds,            dJ/do_r = dJ_r/do_r,
+//! H_ss  = sum_r H_r,ss,  H_s,o_r = H_r,so,  H_o_r,o_r = H_r,oo,  H_o_r,o_q = 0 (r != q).
+//! ```
+//!
+//! The recordings are evaluated in parallel (rayon); the sums are taken afterwards in the
+//! recordings' order, so the result is bit-identical whatever the thread count, and a study of
+//! one recording gives its single problem's numbers to the bit ([`joint`]).
+
+pub mod joint;
+pub mod starts;
+
+use crate::params::{Param, ParamSet};
+use crate::Error;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// The `[study]` table.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Section {
+    shared: Option<Vec<String>>,
+    per_recording: Option<Vec<String>>,
+    cost: Option<String>,
+    optimizer: Option<String>,
+    iterations: Option<usize>,
+}
+
+/// One `[[recording]]` as written.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Entry {
+    name: Option<String>,
+    scene: PathBuf,
+    observations: PathBuf,
+    cameras: Option<PathBuf>,
+    steps: Option<usize>,
+}
+
+/// The file as written.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    study: Option<Section>,
+    recording: Vec<Entry>,
+}
+
+/// One recording of a study; paths are resolved against the study file's folder.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Recording {
+    /// unique name (the report's key)
+    pub name: String,
+    /// the scene file
+    pub scene: PathBuf,
+    /// the observation CSV
+    pub observations: PathBuf,
+    /// the camera file, when given
+    pub cameras: Option<PathBuf>,
+    /// steps to simulate (default: the scene's)
+    pub steps: Option<usize>,
+}
+
+/// A parsed and checked study file.
+#[derive(Clone, Debug)]
+pub struct Study {
+    /// the file
+    pub path: PathBuf,
+    /// parameters shared by every recording (names as in `--params`)
+    pub shared: Vec<String>,
+    /// parameters each recording has its own copy of
+    pub per_recording: Vec<String>,
+    /// `surface` | `levelset` (default: surface)
+    pub cost: Option<String>,
+    /// the optimizer (default: the fit's)
+    pub optimizer: Option<String>,
+    /// maximum iterations (default: the fit's)
+    pub iterations: Option<usize>,
+    /// the recordings, in the file's order
+    pub recordings: Vec<Recording>,
+}
+
+/// True when the TOML text is a study file (it has `[[recording]]` tables), not a scene.
+pub fn is_study(text: &str) -> bool {
+    text.parse::<toml::Table>()
+        .map(|t| matches!(t.get("recording"), Some(toml::Value::Array(_))))
+        .unwrap_or(false)
+}
+
+impl Study {
+    /// Reads and checks a study file.
+    pub fn load(path: &Path) -> Result<Study, Error> {
+        let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
+            .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses study text; `path` names the file in errors and anchors relative paths.
+    pub fn parse(text: &str, path: &Path) -> Result<Study, Error> {
+        let at = |msg: String| Error::Invalid(format!("{}: {msg}", path.display()));
+        let file: File = toml::from_str(text).map_err(|e| {
+            let line = e
+                .span()
+                .map(|s| {
+                    format!(
+                        "line {}: ",
+                        text[..s.start.min(text.len())].matches('\n').count() + 1
+                    )
+                })
+                .unwrap_or_default();
+            at(format!("{line}{}", e.message().replace('\n', " ")))
+        })?;
+        let section = file.study.unwrap_or_default();
+        let shared = section.shared.unwrap_or_default();
+        let per_recording = section.per_recording.unwrap_or_default();
+        let parse = |names: &[String], key: &str| -> Result<Vec<Param>, Error> {
+            if names.iter().all(|n| n.trim().is_empty()) {
+                return Ok(Vec::new());
+            }
+            ParamSet::parse(names)
+                .map(|s| s.params)
+                .map_err(|e| at(format!("study.{key}: {e}")))
+        };
+        let (sp, op) = (parse(&shared, "shared")?, parse(&per_recording, "per_recording")?);
+        if sp.is_empty() && op.is_empty() {
+            return Err(at(
+                "study.shared: no parameters to fit (name them in study.shared and/or study.per_recording)"
+                    .into(),
+            ));
+        }
+        if let Some(p) = sp.iter().find(|p| op.contains(p)) {
+            return Err(at(format!("study: `{p}` is both in shared and in per_recording")));
+        }
+        if sp.contains(&Param::StiffnessField) {
+            return Err(at(
+                "study.shared: stiffness_field cannot be shared (its basis follows each recording's grid); fit it per recording".into(),
+            ));
+        }
+        if let Some(c) = &section.cost {
+            c.parse::<crate::fit::CostKind>()
+                .map_err(|e| at(format!("study.cost: {e}")))?;
+        }
+        if section.iterations == Some(0) {
+            return Err(at("study.iterations: must be at least 1".into()));
+        }
+        if file.recording.is_empty() {
+            return Err(at("no [[recording]]: a study needs at least one".into()));
+        }
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut recordings: Vec<Recording> = Vec::with_capacity(file.recording.len());
+        for (i, e) in file.recording.into_iter().enumerate() {
+            let name = e
+                .name
+                .map(|n| n.trim().to_string())
+                .or_else(|| e.scene.file_stem().map(|s| s.to_string_lossy().into_owned()))
+                .filter(|n| !n.is_empty())
+                .unwrap_or_else(|| format!("recording-{}", i + 1));
+            if name.contains(['/', '\\', ':']) {
+                return Err(at(format!(
+                    "recording[{i}].name: `{name}` must not contain '/', '\\' or ':'"
+                )));
+            }
+            if recordings.iter().any(|r| r.name == name) {
+                return Err(at(format!(
+                    "recording[{i}].name: `{name}` names two recordings (give each a unique name)"
+                )));
+            }
+            if e.steps == Some(0) {
+                return Err(at(format!("recording[{i}].steps: must be at least 1")));
+            }
+            recordings.push(Recording {
+                name,
+                scene: dir.join(e.scene),
+                observations: dir.join(e.observations),
+                cameras: e.cameras.map(|c| dir.join(c)),
+                steps: e.steps,
+            });
+        }
+        Ok(Study {
+            path: path.to_path_buf(),
+            shared,
+            per_recording,
+            cost: section.cost,
+            optimizer: section.optimizer,
+            iterations: section.iterations,
+            recordings,
+        })
+    }
+
+    /// The parameters of one recording's problem: the shared ones, then its own.
+    pub fn recording_params(&self) -> Vec<String> {
+        self.shared
+            .iter()
+            .chain(&self.per_recording)
+            .filter(|n| !n.trim().is_empty())
+            .cloned()
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Study, String> {
+        Study::parse(text, Path::new("/data/s.toml")).map_err(|e| e.to_string())
+    }
+
+    const TWO: &str = "[study]\nshared = [\"young\", \"poisson\"]\nper_recording = [\"initial_velocity\"]\n\n\
+        [[recording]]\nscene = \"drop.toml\"\nobservations = \"drop.csv\"\n\n\
+        [[recording]]\nname = \"throw\"\nscene = \"sub/throw.toml\"\nobservations = \"throw.csv\"\ncameras = \"c.json\"\nsteps = 20\n";
+
+    #[test]
+    fn a_study_resolves_paths_and_names() {
+        assert!(is_study(TWO));
+        assert!(!is_study("[time]\nsteps = 3\n"));
+        let s = parse(TWO).unwrap();
+        assert_eq!(s.recordings.len(), 2);
+        assert_eq!(s.recordings[0].name, "drop");
+        assert_eq!(s.recordings[0].scene, Path::new("/data/drop.toml"));
+        assert_eq!(
+            s.recordings[1].cameras.as_deref(),
+            Some(Path::new("/data/c.json"))
+        );
+        assert_eq!(s.recordings[1].steps, Some(20));
+        assert_eq!(s.recording_params(), vec!["young", "poisson", "initial_velocity"]);
+    }
+
+    #[test]
+    fn bad_studies_name_the_file_and_key() {
+        let cases = [
+            (
+                TWO.replace("shared = [\"young\", \"poisson\"]", "shared = [\"youngs\"]"),
+                "study.shared",
+            ),
+            (
+                TWO.replace("[\"initial_velocity\"]", "[\"young\"]"),
+                "both in shared",
+            ),
+            (
+                TWO.replace("name = \"throw\"", "name = \"drop\""),
+                "names two recordings",
+            ),
+            (TWO.replace("steps = 20", "steps = 0"), "recording[1].steps"),
+            (
+                TWO.replace("steps = 20", "step = 20"),
+                "line 14: unknown field `step`",
+            ),
+            (
+                TWO.replace(
+                    "shared = [\"young\", \"poisson\"]",
+                    "shared = [\"stiffness_field\"]",
+                ),
+                "cannot be shared",
+            ),
+            (
+                "[study]\nshared = [\"young\"]\n".to_string(),
+                "missing field `recording`",
+            ),
+            (
+                "recording = []\n[study]\nshared = [\"young\"]\n".to_string(),
+                "no [[recording]]",
+            ),
+            (
+                TWO.replace("per_recording = [\"initial_velocity\"]\n", "")
+                    .replace("[\"young\", \"poisson\"]", "[]"),
+                "no parameters",
+            ),
+        ];
+        for (text, want) in cases {
+            let e = parse(&text).unwrap_err();
+            assert!(e.starts_with("/data/s.toml: ") && e.contains(want), "{want}: {e}");
+            assert!(!e.contains('\n'), "{e}");
+        }
+    }
+}

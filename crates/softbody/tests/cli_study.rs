@@ -1,0 +1,245 @@
+//! `softbody fit STUDY.toml` end to end: two recordings of the tiny bar (swinging from rest,
+//! and pushed sideways) fitted jointly recover the shared material and the push's own initial
+//! velocity; a study of one recording gives the single fit's parameters to the bit; bad study
+//! files and flags that belong to one scene give one line naming the file or key.
+
+use std::path::{Path, PathBuf};
+mod common;
+use common::*;
+
+/// The damped tiny bar (8 steps) with `young`, `poisson` and an initial velocity `vz`.
+fn scene(young: f64, poisson: f64, vz: f64) -> String {
+    let extra = format!(
+        "[damping]\nmass = 0.1\nstiffness = 0.01\n[initial]\nvelocity = [0.0, 0.0, {vz:?}]\n\
+         [model]\neffects = [\"gravity\", \"damping\", \"initial_velocity\"]"
+    );
+    let (young, poisson) = (format!("young = {young:?}"), format!("poisson = {poisson:?}"));
+    edited(
+        &tiny_bar(8, &extra),
+        &[("young = 2000.0", &young), ("poisson = 0.3", &poisson)],
+    )
+}
+
+/// Observes the truth (E = 2000, nu = 0.3, push `vz`) into `dir/NAME.csv` (noise-free) and
+/// writes the start scene `dir/NAME.toml` (E = 2600, nu = 0.35, push 0.8 vz).
+fn recording(dir: &Path, name: &str, vz: f64) -> (PathBuf, PathBuf) {
+    let obs = dir.join(format!("{name}.csv"));
+    let truth = write(dir, &format!("{name}-truth.toml"), &scene(2000.0, 0.3, vz));
+    let j = observe_json(&truth, &obs, &["--radius", "2"]);
+    assert!(j["points"].as_u64().unwrap() > 500);
+    (
+        write(dir, &format!("{name}.toml"), &scene(2600.0, 0.35, 0.8 * vz)),
+        obs,
+    )
+}
+
+const HEAD: &str =
+    "[study]\nshared = [\"young\", \"poisson\"]\noptimizer = \"gauss-newton\"\niterations = 15\n";
+
+fn entry(name: &str) -> String {
+    format!("\n[[recording]]\nname = \"{name}\"\nscene = \"{name}.toml\"\nobservations = \"{name}.csv\"\n")
+}
+
+#[test]
+fn a_joint_fit_recovers_the_material_and_each_push() {
+    let dir = tmp("study", "joint");
+    recording(&dir, "swing", 0.0);
+    recording(&dir, "push", 0.5);
+    let study = write(
+        &dir,
+        "study.toml",
+        &format!(
+            "{}per_recording = [\"initial_velocity\"]\n{}{}",
+            HEAD,
+            entry("swing"),
+            entry("push")
+        ),
+    );
+    let out = dir.join("report");
+    let o = run(&[
+        "fit",
+        study.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let j = json(&o);
+    let p = &j["parameters"];
+    let get = |k: &str| p[k].as_f64().unwrap_or_else(|| panic!("{k} in {p}"));
+    assert!((get("young") / 2000.0 - 1.0).abs() < 1e-3, "{p}");
+    assert!((get("poisson") / 0.3 - 1.0).abs() < 1e-3, "{p}");
+    assert!((get("push:initial_velocity.z") - 0.5).abs() < 1e-3, "{p}");
+    assert!(get("swing:initial_velocity.z").abs() < 1e-3, "{p}");
+    let recs = j["recordings"].as_array().unwrap();
+    assert_eq!(recs.len(), 2);
+    for r in recs {
+        let (a, b) = (
+            r["rms"]["initial"].as_f64().unwrap(),
+            r["rms"]["final"].as_f64().unwrap(),
+        );
+        assert!(b < 1e-2 * a, "{r}");
+    }
+    assert_eq!(j["correlations"][0]["a"], "young");
+    let c = j["correlations"][0]["value"].as_f64().unwrap();
+    assert!(c.abs() <= 1.0, "{c}");
+    assert!(j["standard_errors"]["push:initial_velocity.z"].as_f64().is_some());
+    assert!(out.join("fit.json").is_file() && out.join("recordings.png").is_file());
+}
+
+#[test]
+fn a_study_of_one_recording_is_the_single_fit() {
+    let dir = tmp("study", "one");
+    let (start, obs) = recording(&dir, "swing", 0.2);
+    let study = write(&dir, "study.toml", &format!("{}{}", HEAD, entry("swing")));
+    let joint = json(&run(&[
+        "fit",
+        study.to_str().unwrap(),
+        "--out",
+        dir.join("a").to_str().unwrap(),
+        "--json",
+    ]));
+    let single = json(&run_on(
+        "fit",
+        &start,
+        &obs,
+        &dir.join("b"),
+        &[
+            "--params",
+            "young,poisson",
+            "--optimizer",
+            "gauss-newton",
+            "--iterations",
+            "15",
+            "--json",
+            "--no-refine-check",
+        ],
+    ));
+    for k in ["young", "poisson"] {
+        let (a, b) = (&joint["parameters"][k], &single["parameters"][k]);
+        assert_eq!(
+            a.as_f64().unwrap().to_bits(),
+            b.as_f64().unwrap().to_bits(),
+            "{k}: {a} vs {b}"
+        );
+        let (a, b) = (&joint["standard_errors"][k], &single["standard_errors"][k]);
+        assert_eq!(
+            a.as_f64().unwrap().to_bits(),
+            b.as_f64().unwrap().to_bits(),
+            "se {k}: {a} vs {b}"
+        );
+    }
+    assert_eq!(joint["iterations"], single["iterations"]);
+}
+
+#[test]
+fn bad_studies_and_scene_flags_are_one_line_errors() {
+    let dir = tmp("study", "bad");
+    recording(&dir, "swing", 0.0);
+    let good = format!("{}{}", HEAD, entry("swing"));
+    let path = |name: &str, text: &str| write(&dir, name, text).to_str().unwrap().to_string();
+    let cases: Vec<(String, Vec<&str>, &str)> = vec![
+        (
+            path("a.toml", &good.replace("\"young\", \"poisson\"", "\"youth\"")),
+            vec![],
+            "study.shared",
+        ),
+        (
+            path("b.toml", &good.replace("swing.csv", "missing.csv")),
+            vec![],
+            "missing.csv",
+        ),
+        (
+            path("c.toml", &format!("{good}{}", entry("swing"))),
+            vec![],
+            "names two recordings",
+        ),
+        (
+            path("d.toml", &good.replace("iterations = 15", "iteration = 15")),
+            vec![],
+            "line 4: unknown field `iteration`",
+        ),
+        (
+            path("e.toml", &good),
+            vec!["--observations", "x.csv"],
+            "--observations",
+        ),
+        (path("f.toml", &good), vec!["--resume"], "--resume"),
+    ];
+    let out = dir.join("out");
+    for (study, flags, needle) in cases {
+        let mut args = vec!["fit", study.as_str(), "--out", out.to_str().unwrap()];
+        args.extend(flags);
+        let o = run(&args);
+        one_line_error(&o, needle);
+    }
+    // commands that take one scene say so
+    let study = path("g.toml", &good);
+    let o = run(&[
+        "gradcheck",
+        study.as_str(),
+        "--observations",
+        dir.join("swing.csv").to_str().unwrap(),
+    ]);
+    one_line_error(&o, "only `softbody fit` takes studies");
+    // a scene without --observations
+    let o = run(&["fit", dir.join("swing.toml").to_str().unwrap()]);
+    one_line_error(&o, "--observations: required");
+}
+
+#[test]
+fn multi_start_reports_every_optimum_and_their_agreement() {
+    let dir = tmp("study", "starts");
+    // noisy observations: the standard errors that judge agreement are then not 0
+    let obs = dir.join("swing.csv");
+    let truth = write(&dir, "truth.toml", &scene(2000.0, 0.3, 0.0));
+    observe_json(
+        &truth,
+        &obs,
+        &["--radius", "2", "--noise", "0.002", "--seed", "3"],
+    );
+    let start = write(&dir, "start.toml", &scene(2600.0, 0.35, 0.0));
+    let fit = |out: &str| {
+        json(&run_on(
+            "fit",
+            &start,
+            &obs,
+            &dir.join(out),
+            &[
+                "--params",
+                "young,poisson",
+                "--optimizer",
+                "gauss-newton",
+                "--starts",
+                "3",
+                "--seed",
+                "5",
+                "--json",
+            ],
+        ))
+    };
+    let j = fit("a");
+    let starts = j["starts"].as_array().unwrap();
+    assert_eq!(starts.len(), 3);
+    // the first start is the scene's, the others spread in the plausible box
+    assert_eq!(
+        starts[0]["initial_parameters"]["young"].as_f64().unwrap().round(),
+        2600.0
+    );
+    let e1 = starts[1]["initial_parameters"]["young"].as_f64().unwrap();
+    let e2 = starts[2]["initial_parameters"]["young"].as_f64().unwrap();
+    assert!(
+        e1 != e2 && (26.0..=260_000.0).contains(&e1) && (26.0..=260_000.0).contains(&e2),
+        "{e1} {e2}"
+    );
+    // identifiable: every start that converged finds the truth (to the noise), and they agree
+    for s in starts.iter().filter(|s| s["converged"] == true) {
+        let e = s["parameters"]["young"].as_f64().unwrap();
+        assert!((e / 2000.0 - 1.0).abs() < 0.05, "{s}");
+    }
+    assert_eq!(j["unique"], true, "{}", j["max_disagreement"]);
+    let best = j["best_start"].as_u64().unwrap() as usize;
+    assert_eq!(j["parameters"], starts[best]["parameters"]);
+    // seeded: the same seed, the same report
+    let again = fit("b");
+    assert_eq!(again["starts"], j["starts"]);
+}
