@@ -186,6 +186,13 @@ pub fn check_observations(
     let ev = problem
         .evaluate(&problem.x0())
         .map_err(|e| Error::invalid(format!("the starting model: {e}")))?;
+    check_reach(&ev, path)?;
+    Ok(ev)
+}
+
+/// The second half of [`check_observations`], on an evaluation at the starting parameters:
+/// observations entirely out of reach of the simulated body are an error naming `path`.
+pub fn check_reach(ev: &Evaluation, path: &std::path::Path) -> Result<(), Error> {
     let (outside, count) = ev
         .frames
         .iter()
@@ -196,7 +203,7 @@ pub fn check_observations(
             path.display()
         )));
     }
-    Ok(ev)
+    Ok(())
 }
 
 /// The optimizer's view of a [`Problem`]: every evaluation runs the forward and adjoint passes

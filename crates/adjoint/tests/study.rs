@@ -9,10 +9,13 @@ use adjoint::fit::FitObjective;
 use adjoint::optim::{minimize, OptimParams, Optimizer};
 use adjoint::params::ParamSet;
 use adjoint::problem::Problem;
+use adjoint::study::ensemble::Ensemble;
 use adjoint::study::joint::{JointObjective, JointProblem};
 use cutfem::fem::Model;
 use gpumat::Vec3;
 use std::ops::ControlFlow;
+use std::rc::Rc;
+use std::sync::{Arc, Barrier, Mutex};
 
 fn bits(v: &[f64]) -> Vec<u64> {
     v.iter().map(|x| x.to_bits()).collect()
@@ -204,6 +207,108 @@ fn the_joint_result_does_not_depend_on_the_thread_count() {
         })
     };
     assert_eq!(run(1), run(3));
+}
+
+/// Ranks as threads: an all-gather through shared slots and a barrier (what MPI's
+/// all-gather does between processes).
+struct ThreadRanks {
+    rank: usize,
+    size: usize,
+    shared: Arc<(Mutex<Vec<Vec<u8>>>, Barrier)>,
+}
+
+impl Ensemble for ThreadRanks {
+    fn rank(&self) -> usize {
+        self.rank
+    }
+    fn size(&self) -> usize {
+        self.size
+    }
+    fn all_gather(&self, mine: &[u8]) -> Vec<Vec<u8>> {
+        let (slots, barrier) = &*self.shared;
+        slots.lock().unwrap()[self.rank] = mine.to_vec();
+        barrier.wait();
+        let all = slots.lock().unwrap().clone();
+        barrier.wait();
+        all
+    }
+}
+
+/// Runs `f` on `size` ranks (threads), each with its own copy of the study shared out over
+/// them; every rank's result, in rank order.
+fn on_ranks<T: Send>(size: usize, f: impl Fn(&mut JointProblem) -> T + Sync) -> Vec<T> {
+    let shared = Arc::new((Mutex::new(vec![Vec::new(); size]), Barrier::new(size)));
+    std::thread::scope(|s| {
+        let handles: Vec<_> = (0..size)
+            .map(|rank| {
+                let (shared, f) = (shared.clone(), &f);
+                s.spawn(move || {
+                    let mut j = study(true);
+                    j.distribute(Rc::new(ThreadRanks { rank, size, shared }));
+                    f(&mut j)
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    })
+}
+
+#[test]
+fn ranks_share_the_recordings_and_agree_with_one_process_to_the_bit() {
+    let eval = |j: &mut JointProblem| {
+        let x = j.x0();
+        let (ev, g, h) = j.gauss_newton(&x).unwrap();
+        let frames: Vec<_> = ev.recordings.iter().map(|e| e.frames.clone()).collect();
+        (ev.cost.to_bits(), bits(&g), bits(&h), frames, j.owners().to_vec())
+    };
+    let (c1, g1, h1, f1, _) = eval(&mut study(true));
+    for size in [2, 3] {
+        for (rank, (c, g, h, f, owners)) in on_ranks(size, eval).into_iter().enumerate() {
+            assert_eq!((c, &g, &h), (c1, &g1, &h1), "{size} ranks, rank {rank}");
+            assert_eq!(f, f1);
+            // the two recordings (same size) go to ranks 0 and 1; a third rank idles
+            assert_eq!(owners, vec![0, 1]);
+        }
+    }
+    // a short fit on two ranks takes the same steps as in one process
+    let fit = |j: &mut JointProblem| {
+        let x0 = j.x0();
+        let mut obj = JointObjective::new(j);
+        let params = OptimParams {
+            max_iterations: 2,
+            ..OptimParams::default()
+        };
+        let (x, _) = minimize(Optimizer::GaussNewton, &mut obj, &x0, &params, &mut |_| {
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+        bits(&x)
+    };
+    let one = fit(&mut study(true));
+    assert!(on_ranks(2, fit).iter().all(|x| *x == one));
+}
+
+#[test]
+fn a_recording_that_fails_on_its_rank_stops_every_rank_with_its_message() {
+    // recording `b` (rank 1) gets a non-finite launch velocity: its forward run fails there
+    let results = on_ranks(2, |j| {
+        let mut x = j.x0();
+        let n = x.len();
+        x[n - 1] = f64::NAN;
+        j.gradient(&x).map(|_| ()).map_err(|e| e.to_string())
+    });
+    let local = {
+        let mut j = study(true);
+        let mut x = j.x0();
+        let n = x.len();
+        x[n - 1] = f64::NAN;
+        j.gradient(&x).map(|_| ()).map_err(|e| e.to_string())
+    };
+    let msg = local.expect_err("a NaN launch velocity fails the forward run");
+    assert!(msg.starts_with("recording `b`: "), "{msg}");
+    for r in results {
+        assert_eq!(r, Err(msg.clone()));
+    }
 }
 
 #[test]

@@ -172,7 +172,8 @@ pub fn run(args: Args) -> Result<(), String> {
     if crate::study_fit::is_study_file(&args.problem.scene) {
         return crate::study_fit::run(&args);
     }
-    if args.starts.is_some() {
+    // several starts, or several MPI ranks: the scene as a study of one recording
+    if args.starts.is_some() || crate::ensemble::launched() {
         return crate::study_fit::run_scene(&args);
     }
     let t0 = Instant::now();

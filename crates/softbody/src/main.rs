@@ -7,6 +7,7 @@
 mod demo;
 mod diagnose;
 mod diagnose_report;
+mod ensemble;
 mod fit;
 mod fit_report;
 mod gradcheck;
@@ -73,6 +74,8 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         // the output's reader went away: end quietly (interface.md)
         Err(e) if e == output::STDOUT_CLOSED => ExitCode::from(output::EXIT_STDOUT_CLOSED),
+        // an MPI rank other than 0: rank 0 says why
+        Err(e) if e == ensemble::QUIET_FAILURE => ExitCode::FAILURE,
         Err(e) => {
             // one line, each prefix once, a quoted bad value repeated up to 100 characters
             let line = out_dir::public_message(&e).replace(['\n', '\r'], " ");

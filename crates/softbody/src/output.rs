@@ -34,11 +34,17 @@ pub fn print_json(value: &Value) -> Result<(), String> {
     print_line(&value.to_string())
 }
 
-/// `eprintln!` that ignores a failing stderr instead of panicking.
+/// Set on the MPI ranks other than 0 (`crate::ensemble`): their notes would repeat rank 0's.
+pub static SILENT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// `eprintln!` that ignores a failing stderr instead of panicking (and says nothing on a
+/// [`SILENT`] rank).
 #[macro_export]
 macro_rules! note {
     ($($arg:tt)*) => {{
         use std::io::Write as _;
-        let _ = writeln!(std::io::stderr(), $($arg)*);
+        if !$crate::output::SILENT.load(std::sync::atomic::Ordering::Relaxed) {
+            let _ = writeln!(std::io::stderr(), $($arg)*);
+        }
     }};
 }

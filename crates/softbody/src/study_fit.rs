@@ -12,10 +12,11 @@ use crate::plot::{palette, BarChart, Figure};
 use crate::problem_args::ProblemArgs;
 use crate::progress;
 use adjoint::cost::Robust;
-use adjoint::fit::{check_observations, scene_problem};
+use adjoint::fit::{check_frames, check_reach, scene_problem};
 use adjoint::optim::{minimize, OptimParams, Optimizer};
 use adjoint::params::ParamSet;
 use adjoint::statistics::Uncertainty;
+use adjoint::study::ensemble::{agree, Ensemble};
 use adjoint::study::joint::{JointEvaluation, JointObjective, JointProblem};
 use adjoint::study::starts::{disagreement, latin_hypercube, DISAGREE_Z};
 use adjoint::study::{Recording, Study};
@@ -23,6 +24,7 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::ops::ControlFlow;
 use std::path::Path;
+use std::rc::Rc;
 use std::time::Instant;
 
 /// True when `path` holds a study file rather than a scene (unreadable files are left to the
@@ -119,18 +121,12 @@ pub fn run_scene(args: &Args) -> Result<(), String> {
     fit_study(args, &study)
 }
 
-/// The recordings' problems joined, with each one's evaluation at its start when `check`
-/// (which also checks the observations against it, [`check_observations`]); the copies of a
-/// multi-start fit, built from files already checked, skip that forward run.
-fn build(
-    study: &Study,
-    args: &Args,
-    robust: Robust,
-    check: bool,
-) -> Result<(JointProblem, Option<JointEvaluation>), String> {
+/// The recordings' problems joined; when `check`, each recording's observed frames are
+/// checked against its steps ([`check_frames`]; the reach is checked on the first evaluation,
+/// [`initial`]). The copies of a multi-start fit, built from files already checked, skip that.
+fn build(study: &Study, args: &Args, robust: Robust, check: bool) -> Result<JointProblem, String> {
     let names = study.recording_params().join(",");
     let mut problems = Vec::with_capacity(study.recordings.len());
-    let mut initial = Vec::with_capacity(study.recordings.len());
     for rec in &study.recordings {
         let at = |e: String| format!("recording `{}`: {e}", rec.name);
         let loaded = ProblemArgs {
@@ -146,7 +142,7 @@ fn build(
         if loaded.observations.is_empty() {
             return Err(at(format!("{}: no observed points", rec.observations.display())));
         }
-        let mut problem = scene_problem(
+        let problem = scene_problem(
             &loaded.scene,
             &loaded.observations,
             loaded.params,
@@ -157,10 +153,8 @@ fn build(
         )
         .map_err(|e| at(e.to_string()))?;
         if check {
-            initial.push(
-                check_observations(&mut problem, &loaded.observations, &rec.observations)
-                    .map_err(|e| at(e.to_string()))?,
-            );
+            check_frames(&loaded.observations, &rec.observations, problem.steps)
+                .map_err(|e| at(e.to_string()))?;
         }
         problems.push(problem);
     }
@@ -173,13 +167,19 @@ fn build(
         ParamSet::parse(&study.shared).map_err(|e| e.to_string())?
     };
     let rec_names = study.recordings.iter().map(|r| r.name.clone()).collect();
-    let joint = JointProblem::new(rec_names, problems, &shared).map_err(|e| e.to_string())?;
-    let ev = check.then(|| JointEvaluation {
-        cost: initial.iter().map(|e| e.cost).sum(),
-        recordings: initial,
-        gauss_newton: None,
-    });
-    Ok((joint, ev))
+    JointProblem::new(rec_names, problems, &shared).map_err(|e| e.to_string())
+}
+
+/// The joint evaluation at the start, with every recording's observations checked to lie
+/// within reach of its simulated body ([`check_reach`]).
+fn initial(joint: &mut JointProblem, study: &Study) -> Result<JointEvaluation, String> {
+    let ev = joint
+        .evaluate(&joint.x0())
+        .map_err(|e| format!("the starting model: {e}"))?;
+    for (rec, e) in study.recordings.iter().zip(&ev.recordings) {
+        check_reach(e, &rec.observations).map_err(|e| format!("recording `{}`: {e}", rec.name))?;
+    }
+    Ok(ev)
 }
 
 /// One fit of the joint problem: where it started and ended.
@@ -247,9 +247,34 @@ fn std_errors(run: &Run, n: usize) -> Vec<f64> {
         .map_or_else(|| vec![0.0; n], |u| u.std_errors.clone())
 }
 
-/// The joint fit of `study` (from `--starts` starting points), its report and output.
+/// The joint fit of `study` (from `--starts` starting points), its report and output. Under
+/// `mpirun` (feature `mpi`) every rank runs this; rank 0 alone shows progress and writes, and
+/// the other ranks end quietly on a failure (rank 0 names it).
 fn fit_study(args: &Args, study: &Study) -> Result<(), String> {
+    let ensemble = crate::ensemble::join()?;
+    let lead = ensemble.as_ref().map_or(true, |e| e.rank() == 0);
+    let result = fit_study_on(args, study, ensemble);
+    match result {
+        Err(_) if !lead => Err(crate::ensemble::QUIET_FAILURE.into()),
+        r => r,
+    }
+}
+
+/// A step every rank takes: with an ensemble, its outcome on every rank (the first failure).
+fn agreed<T>(ensemble: &Option<Rc<dyn Ensemble>>, step: Result<T, String>) -> Result<T, String> {
+    match ensemble {
+        None => step,
+        Some(e) => match agree(e.as_ref(), step.as_ref().map(|_| ()).map_err(Clone::clone)) {
+            Ok(()) => step,
+            Err(first) => Err(first),
+        },
+    }
+}
+
+/// [`fit_study`] on this process' share of the recordings.
+fn fit_study_on(args: &Args, study: &Study, ensemble: Option<Rc<dyn Ensemble>>) -> Result<(), String> {
     let t0 = Instant::now();
+    let lead = ensemble.as_ref().map_or(true, |e| e.rank() == 0);
     let section = cutfem::scene::FitSection {
         parameters: None,
         optimizer: study.optimizer.clone(),
@@ -260,8 +285,11 @@ fn fit_study(args: &Args, study: &Study) -> Result<(), String> {
         iterations,
         robust,
     } = crate::fit::Settings::new(args, &section)?;
-    let (mut joint, ev_initial) = build(study, args, robust, true)?;
-    let ev_initial = ev_initial.expect("build evaluates every recording when it checks them");
+    let mut joint = agreed(&ensemble, build(study, args, robust, true))?;
+    if let Some(e) = &ensemble {
+        joint.distribute(e.clone());
+    }
+    let ev_initial = initial(&mut joint, study)?;
     let x0 = joint.x0();
     let k = args.starts.unwrap_or(1) as usize;
     let starts = latin_hypercube(&x0, &joint.bounds(&x0), k, args.seed);
@@ -270,24 +298,37 @@ fn fit_study(args: &Args, study: &Study) -> Result<(), String> {
         .out
         .clone()
         .unwrap_or_else(|| crate::simulate::default_out(&args.problem.scene, "fit"));
-    let dir = crate::out_dir::OutDir::begin(&target)?;
-    let out = dir.path().to_path_buf();
+    // only the lead writes; a folder it cannot make stops every rank
+    let dir = agreed(
+        &ensemble,
+        lead.then(|| crate::out_dir::OutDir::begin(&target)).transpose(),
+    )?;
 
-    let bar = progress::bar(((iterations + 1) * k) as u64, "fit", args.json);
+    let bar = progress::bar(((iterations + 1) * k) as u64, "fit", args.json || !lead);
     let oparams = OptimParams {
         max_iterations: iterations,
         ..OptimParams::default()
     };
     // one start: this joint problem; several: each start on its own copy, in parallel (the
-    // starts are independent and each fit's numbers do not depend on the threads)
+    // starts are independent and each fit's numbers do not depend on the threads), or one
+    // after the other over the ranks of an ensemble
     let runs: Vec<Result<Run, String>> = if k == 1 {
         vec![fit_from(&mut joint, &starts[0], optimizer, &oparams, &bar, "fit")]
+    } else if let Some(e) = &ensemble {
+        let mut runs = Vec::with_capacity(k);
+        for (j, xs) in starts.iter().enumerate() {
+            let mut own = agreed(&ensemble, build(study, args, robust, false))?;
+            own.distribute(e.clone());
+            let tag = format!("start {}/{k}", j + 1);
+            runs.push(fit_from(&mut own, xs, optimizer, &oparams, &bar, &tag));
+        }
+        runs
     } else {
         starts
             .par_iter()
             .enumerate()
             .map(|(j, xs)| {
-                let (mut own, _) = build(study, args, robust, false)?;
+                let mut own = build(study, args, robust, false)?;
                 fit_from(
                     &mut own,
                     xs,
@@ -334,6 +375,9 @@ fn fit_study(args: &Args, study: &Study) -> Result<(), String> {
             .map(|(i, j)| json!({"a": u.labels[i], "b": u.labels[j], "value": u.correlation(i, j)}))
             .collect()
     });
+    // the other ranks are done: rank 0 reports
+    let Some(dir) = dir else { return Ok(()) };
+    let out = dir.path().to_path_buf();
     let picture = out.join("recordings.png");
     BarChart {
         title: "rms per recording before and after the joint fit".into(),

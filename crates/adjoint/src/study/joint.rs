@@ -1,12 +1,14 @@
 //! The joint problem of a study: the recordings' problems behind one set of coordinates
 //! `X = (s, o_1, ..., o_R)` (module docs of [`super`] for the sums and the block structure).
 
+use super::ensemble::{assign, put_string, Ensemble, Reader, Wire};
 use crate::optim::{EvalError, GaussNewtonObjective, GnEval, Objective};
 use crate::params::ParamSet;
 use crate::problem::{Evaluation, Problem};
 use crate::statistics::{uncertainty_of, Uncertainty};
 use crate::Error;
 use rayon::prelude::*;
+use std::rc::Rc;
 
 /// Several recordings' problems fitted with shared and per-recording coordinates.
 #[derive(Debug)]
@@ -19,6 +21,10 @@ pub struct JointProblem {
     shared: usize,
     /// where each recording's own coordinates start in `X`, and how many
     own: Vec<(usize, usize)>,
+    /// the processes sharing the recordings ([`super::ensemble`]); `None`: this one runs all
+    ensemble: Option<Rc<dyn Ensemble>>,
+    /// the rank owning each recording (all 0 without an ensemble)
+    owner: Vec<usize>,
 }
 
 /// One joint evaluation: the summed cost and each recording's evaluation.
@@ -94,12 +100,33 @@ impl JointProblem {
             own.push((at, k));
             at += k;
         }
+        let owner = vec![0; problems.len()];
         Ok(Self {
             names,
             problems,
             shared,
             own,
+            ensemble: None,
+            owner,
         })
+    }
+
+    /// Shares the recordings out over `ensemble`'s ranks ([`super::ensemble::assign`], each
+    /// recording's cost estimated as its integrator steps times its nodes); every rank must
+    /// join the same study. Evaluations are then collectives: every rank calls them in turn.
+    pub fn distribute(&mut self, ensemble: Rc<dyn Ensemble>) {
+        let costs: Vec<f64> = self
+            .problems
+            .iter()
+            .map(|p| (p.steps * p.base.substeps.max(1)) as f64 * p.sim.u.rows() as f64)
+            .collect();
+        self.owner = assign(&costs, ensemble.size());
+        self.ensemble = Some(ensemble);
+    }
+
+    /// The rank owning each recording.
+    pub fn owners(&self) -> &[usize] {
+        &self.owner
     }
 
     /// Number of joint coordinates `P`.
@@ -178,23 +205,62 @@ impl JointProblem {
     }
 
     /// Runs `f` on every recording (in parallel) at its coordinates; results in order, the
-    /// first error (in the recordings' order) named by its recording.
-    fn each<T: Send>(
+    /// first error (in the recordings' order) named by its recording. With an ensemble, this
+    /// rank runs the recordings it owns and the results are exchanged (a collective).
+    fn each<T: Send + Wire>(
         &mut self,
         x: &[f64],
         f: impl Fn(&mut Problem, &[f64]) -> Result<T, Error> + Sync,
     ) -> Result<Vec<T>, Error> {
         let xs: Vec<Vec<f64>> = (0..self.problems.len()).map(|r| self.recording_x(x, r)).collect();
-        let results: Vec<Result<T, Error>> = self
+        let rank = self.ensemble.as_ref().map_or(0, |e| e.rank());
+        let mut results: Vec<Option<Result<T, Error>>> = self
             .problems
             .par_iter_mut()
             .zip(&xs)
-            .map(|(p, xr)| f(p, xr))
+            .zip(&self.owner)
+            .map(|((p, xr), &o)| (o == rank).then(|| f(p, xr)))
             .collect();
+        if let Some(ensemble) = &self.ensemble {
+            let mut mine = Vec::new();
+            for (r, res) in results.iter().enumerate() {
+                let Some(res) = res else { continue };
+                mine.extend_from_slice(&(r as u64).to_le_bytes());
+                match res {
+                    Ok(t) => {
+                        mine.push(1);
+                        t.put(&mut mine);
+                    }
+                    Err(e) => {
+                        mine.push(0);
+                        put_string(&mut mine, &e.to_string());
+                    }
+                }
+            }
+            for bytes in ensemble.all_gather(&mine) {
+                let mut input = Reader::new(&bytes);
+                while !input.is_empty() {
+                    let r = input.usize()?;
+                    if r >= results.len() {
+                        return Err(Error::invalid("a rank sent a result for a recording this study does not have (the ranks read different studies?)"));
+                    }
+                    let ok = input.byte()?;
+                    let model = self.problems[r].model_at(&xs[r]);
+                    results[r] = Some(if ok == 1 {
+                        Ok(T::take(&mut input, &model)?)
+                    } else {
+                        Err(Error::Invalid(input.string()?))
+                    });
+                }
+            }
+        }
         results
             .into_iter()
             .zip(&self.names)
-            .map(|(r, name)| r.map_err(|e| Error::Invalid(format!("recording `{name}`: {e}"))))
+            .map(|(res, name)| {
+                res.unwrap_or_else(|| Err(Error::invalid("no rank evaluated it")))
+                    .map_err(|e| Error::Invalid(format!("recording `{name}`: {e}")))
+            })
             .collect()
     }
 
