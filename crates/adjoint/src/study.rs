@@ -34,6 +34,7 @@
 //! recordings' order, so the result is bit-identical whatever the thread count, and a study of
 //! one recording gives its single problem's numbers to the bit ([`joint`]).
 
+pub mod design;
 pub mod ensemble;
 pub mod joint;
 pub mod starts;

@@ -50,6 +50,10 @@ pub struct Args {
     /// Seed of the starts (`--starts`).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// After the fit, say which additional recording (dropped, squeezed, thrown, struck) would
+    /// shrink the largest relative standard error most (docs/study.md).
+    #[arg(long)]
+    pub design: bool,
     /// Print exactly one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -172,8 +176,9 @@ pub fn run(args: Args) -> Result<(), String> {
     if crate::study_fit::is_study_file(&args.problem.scene) {
         return crate::study_fit::run(&args);
     }
-    // several starts, or several MPI ranks: the scene as a study of one recording
-    if args.starts.is_some() || crate::ensemble::launched() {
+    // several starts, the design advice, or several MPI ranks: the scene as a study of one
+    // recording
+    if args.starts.is_some() || args.design || crate::ensemble::launched() {
         return crate::study_fit::run_scene(&args);
     }
     let t0 = Instant::now();

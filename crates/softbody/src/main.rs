@@ -18,6 +18,7 @@ mod problem_args;
 mod progress;
 mod refine_check;
 mod simulate;
+mod study_design;
 mod study_fit;
 
 use clap::{Parser, Subcommand};

@@ -375,6 +375,19 @@ fn fit_study_on(args: &Args, study: &Study, ensemble: Option<Rc<dyn Ensemble>>) 
             .map(|(i, j)| json!({"a": u.labels[i], "b": u.labels[j], "value": u.correlation(i, j)}))
             .collect()
     });
+    // the design's Gauss-Newton picture (a collective when the fit's last evaluation did not
+    // make the matrix)
+    let gn_picture = if args.design {
+        let (xb, evb) = (run.x.clone(), run.ev.clone());
+        Some(
+            joint
+                .picture(&xb, &evb)
+                .map_err(|e| format!("--design: {e}"))?
+                .ok_or("--design: no more observed points than fitted coordinates: no standard errors")?,
+        )
+    } else {
+        None
+    };
     // the other ranks are done: rank 0 reports
     let Some(dir) = dir else { return Ok(()) };
     let out = dir.path().to_path_buf();
@@ -451,6 +464,14 @@ fn fit_study_on(args: &Args, study: &Study, ensemble: Option<Rc<dyn Ensemble>>) 
         summary["max_disagreement"] = json!(worst);
         summary["unique"] = json!(worst <= DISAGREE_Z);
     }
+    let mut advice = None;
+    if let Some(current) = &gn_picture {
+        let s = joint.shared_len();
+        let values: Vec<f64> = fitted.iter().take(s).map(|v| v.1).collect();
+        let (entry, line) = crate::study_design::design(study, current, &x[..s], &values, &out)?;
+        summary["design"] = entry;
+        advice = Some(line);
+    }
     summary["seconds"] = json!(t0.elapsed().as_secs_f64());
     summary["out"] = json!(out);
     summary["files"] = json!({"recordings": picture});
@@ -484,6 +505,9 @@ fn fit_study_on(args: &Args, study: &Study, ensemble: Option<Rc<dyn Ensemble>>) 
                     )
                 }
             );
+        }
+        if let Some(line) = &advice {
+            crate::note!("{line}");
         }
         crate::note!("report: {}", target.display());
     }

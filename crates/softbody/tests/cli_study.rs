@@ -243,3 +243,40 @@ fn multi_start_reports_every_optimum_and_their_agreement() {
     let again = fit("b");
     assert_eq!(again["starts"], j["starts"]);
 }
+
+#[test]
+fn design_advice_predicts_smaller_errors_for_every_candidate_motion() {
+    let dir = tmp("study", "design");
+    recording(&dir, "swing", 0.0);
+    let study = write(&dir, "study.toml", &format!("{}{}", HEAD, entry("swing")));
+    let out = dir.join("report");
+    let j = json(&run(&[
+        "fit",
+        study.to_str().unwrap(),
+        "--design",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]));
+    let d = &j["design"];
+    let now = d["relative_std_error"].as_f64().unwrap();
+    assert!(now > 0.0, "{d}");
+    let cands = d["candidates"].as_array().unwrap();
+    let names: Vec<&str> = cands.iter().map(|c| c["name"].as_str().unwrap()).collect();
+    // the bar is held and under gravity: every motion of the menu applies
+    assert_eq!(names, ["drop", "squeeze", "throw", "strike"], "{d}");
+    let mut best = f64::INFINITY;
+    for c in cands {
+        assert!(c["error"].is_null(), "{c}");
+        assert!(c["points"].as_u64().unwrap() > 0, "{c}");
+        // more data never loses information: H + H_c >= H
+        let r = c["relative_std_error"].as_f64().unwrap();
+        assert!(r <= now * (1.0 + 1e-9), "{c} vs {now}");
+        best = best.min(r);
+    }
+    let named = cands.iter().find(|c| c["name"] == d["best"]).unwrap();
+    assert_eq!(named["relative_std_error"].as_f64().unwrap(), best);
+    // a landing excites the material more than the swing alone
+    assert!(best < 0.5 * now, "{d}");
+    assert!(out.join("design.png").is_file());
+}

@@ -1,11 +1,12 @@
 //! The joint problem of a study: the recordings' problems behind one set of coordinates
 //! `X = (s, o_1, ..., o_R)` (module docs of [`super`] for the sums and the block structure).
 
+use super::design::Current;
 use super::ensemble::{assign, put_string, Ensemble, Reader, Wire};
 use crate::optim::{EvalError, GaussNewtonObjective, GnEval, Objective};
 use crate::params::ParamSet;
 use crate::problem::{Evaluation, Problem};
-use crate::statistics::{uncertainty_of, Uncertainty};
+use crate::statistics::Uncertainty;
 use crate::Error;
 use rayon::prelude::*;
 use std::rc::Rc;
@@ -342,6 +343,14 @@ impl JointProblem {
     /// for every point of every recording; `crate::statistics`), from the evaluation's joint
     /// Gauss-Newton matrix or a new one. `None` as for one fit.
     pub fn uncertainty(&mut self, x: &[f64], ev: &JointEvaluation) -> Result<Option<Uncertainty>, Error> {
+        Ok(self.picture(x, ev)?.and_then(|c| c.uncertainty()))
+    }
+
+    /// What the standard errors at `x` are made of (the joint Gauss-Newton matrix from the
+    /// evaluation or a new one, `r^T W r`, the point count, the scales and labels), for
+    /// [`JointProblem::uncertainty`] and the experiment design ([`super::design`]). `None` when
+    /// there are no more informative points than coordinates.
+    pub fn picture(&mut self, x: &[f64], ev: &JointEvaluation) -> Result<Option<Current>, Error> {
         let n: usize = ev
             .recordings
             .iter()
@@ -370,7 +379,14 @@ impl JointProblem {
             }
             scales.extend_from_slice(&s[self.shared..]);
         }
-        Ok(uncertainty_of(&h, rwr, n, scales, self.labels()))
+        Ok(Some(Current {
+            h,
+            rwr,
+            n,
+            scales,
+            labels: self.labels(),
+            shared: self.shared,
+        }))
     }
 }
 

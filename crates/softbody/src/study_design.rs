@@ -1,0 +1,146 @@
+//! `softbody fit STUDY.toml --design`: after the joint fit, which additional recording (from a
+//! short menu of motions of the first recording's body: dropped, squeezed against the ground,
+//! thrown with a spin, held and struck) would shrink the study's largest relative standard
+//! error most (`adjoint::study::design`: each candidate is simulated at the fitted material,
+//! observed noise-free by a rig of virtual depth cameras, and its Gauss-Newton matrix is added
+//! to the study's). The report's `design` entry lists every candidate's predicted standard
+//! errors; `design.png` shows the largest one now and with each candidate.
+
+use crate::plot::{palette, BarChart, Figure};
+use adjoint::observe::RigParams;
+use adjoint::params::ParamSet;
+use adjoint::study::design::{candidates, predict, Current, Prediction};
+use adjoint::study::Study;
+use rayon::prelude::*;
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// The relative standard error of value `v` (the absolute one when `v` is 0).
+fn relative(se: f64, v: f64) -> f64 {
+    if v != 0.0 {
+        se / v.abs()
+    } else {
+        se
+    }
+}
+
+/// Runs the design for `study` fitted at shared coordinates `shared_x` (values `values`, in the
+/// order of `current`'s shared labels), writes `design.png` into `out` and returns the report
+/// entry and a one-line advice.
+pub fn design(
+    study: &Study,
+    current: &Current,
+    shared_x: &[f64],
+    values: &[f64],
+    out: &Path,
+) -> Result<(Value, String), String> {
+    let s = current.shared;
+    let now = current
+        .uncertainty()
+        .ok_or("--design: the study's Gauss-Newton matrix is singular at the fit")?;
+    let rel_now: Vec<f64> = (0..s).map(|i| relative(now.std_errors[i], values[i])).collect();
+    let worst = (0..s)
+        .max_by(|&a, &b| rel_now[a].total_cmp(&rel_now[b]))
+        .ok_or("--design: the study shares no parameter")?;
+    let first = &study.recordings[0];
+    let scene = cutfem::scene::Scene::load(&first.scene).map_err(|e| e.to_string())?;
+    let surface = scene
+        .build_simulation()
+        .and_then(|sim| sim.grid.surface())
+        .map_err(|e| format!("{}: {e}", first.scene.display()))?;
+    let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+    for v in &surface.mesh.vertices {
+        for d in 0..3 {
+            lo[d] = lo[d].min(v[d]);
+            hi[d] = hi[d].max(v[d]);
+        }
+    }
+    let shared = ParamSet::parse(&study.shared).map_err(|e| e.to_string())?;
+    let rig = RigParams::default();
+    let menu = candidates(&scene, lo, hi);
+    let bar = crate::progress::bar(menu.len() as u64, "design", false);
+    let predictions: Vec<Prediction> = menu
+        .par_iter()
+        .map(|c| {
+            let p = predict(c, &shared, &study.per_recording, shared_x, current, &rig);
+            bar.inc(1);
+            p
+        })
+        .collect();
+    bar.finish_and_clear();
+    let label = &current.labels[worst];
+    let best = predictions
+        .iter()
+        .filter_map(|p| {
+            p.std_errors
+                .as_ref()
+                .map(|se| (p, relative(se[worst], values[worst])))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    let pct = |r: f64| format!("{:.2}%", 100.0 * r);
+    let advice = match best {
+        Some((p, r)) => format!(
+            "experiment design: the largest relative standard error is {label}'s ({}); a `{}` recording ({}) would bring it to {} ({})",
+            pct(rel_now[worst]),
+            p.name,
+            p.what,
+            pct(r),
+            predictions
+                .iter()
+                .map(|q| match &q.std_errors {
+                    Some(se) => format!("{}: {}", q.name, pct(relative(se[worst], values[worst]))),
+                    None => format!("{}: failed", q.name),
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        None => format!(
+            "experiment design: no candidate motion could be simulated ({})",
+            predictions
+                .iter()
+                .map(|q| format!("{}: {}", q.name, q.error.clone().unwrap_or_default()))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ),
+    };
+    let picture = out.join("design.png");
+    let mut bars = vec![("now".to_string(), 100.0 * rel_now[worst], palette(1))];
+    bars.extend(predictions.iter().map(|p| {
+        let r = p
+            .std_errors
+            .as_ref()
+            .map_or(f64::NAN, |se| relative(se[worst], values[worst]));
+        (format!("+ {}", p.name), 100.0 * r, palette(0))
+    }));
+    BarChart {
+        title: format!("{label}: standard error now and with one more recording"),
+        y_label: "standard error (% of the value)".into(),
+        bars,
+        ..BarChart::default()
+    }
+    .picture()
+    .save(&picture)?;
+    let labelled = |se: &[f64]| -> Value {
+        (0..s)
+            .map(|i| (current.labels[i].clone(), json!(se[i])))
+            .collect::<serde_json::Map<_, _>>()
+            .into()
+    };
+    let entry = json!({
+        "parameter": label,
+        "relative_std_error": rel_now[worst],
+        "std_errors": labelled(&now.std_errors),
+        "rig": {"cameras": rig.cameras, "pixels": rig.pixels, "radius": rig.radius},
+        "candidates": predictions.iter().map(|p| json!({
+            "name": p.name,
+            "motion": p.what,
+            "points": p.points,
+            "std_errors": p.std_errors.as_deref().map(labelled),
+            "relative_std_error": p.std_errors.as_ref().map(|se| relative(se[worst], values[worst])),
+            "error": p.error,
+        })).collect::<Vec<_>>(),
+        "best": best.map(|(p, _)| p.name),
+        "picture": picture,
+    });
+    Ok((entry, advice))
+}
