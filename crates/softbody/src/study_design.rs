@@ -4,7 +4,8 @@
 //! error most (`adjoint::study::design`: each candidate is simulated at the fitted material,
 //! observed noise-free by a rig of virtual depth cameras, and its Gauss-Newton matrix is added
 //! to the study's). The report's `design` entry lists every candidate's predicted standard
-//! errors; `design.png` shows the largest one now and with each candidate.
+//! errors; `design.png` shows the largest one now and with each candidate, and `design/NAME.toml`
+//! holds each candidate's scene.
 
 use crate::plot::{palette, BarChart, Figure};
 use adjoint::observe::RigParams;
@@ -103,6 +104,16 @@ pub fn design(
                 .join("; ")
         ),
     };
+    // each motion as a scene file (the first recording's scene, material as given there), to
+    // record it, or observe it
+    let scenes = out.join("design");
+    std::fs::create_dir_all(&scenes).map_err(|e| format!("{}: {e}", scenes.display()))?;
+    let mut files = Vec::with_capacity(menu.len());
+    for c in &menu {
+        let path = scenes.join(format!("{}.toml", c.name));
+        c.scene.write(&path).map_err(|e| e.to_string())?;
+        files.push(path);
+    }
     let picture = out.join("design.png");
     let mut bars = vec![("now".to_string(), 100.0 * rel_now[worst], palette(1))];
     bars.extend(predictions.iter().map(|p| {
@@ -131,8 +142,9 @@ pub fn design(
         "relative_std_error": rel_now[worst],
         "std_errors": labelled(&now.std_errors),
         "rig": {"cameras": rig.cameras, "pixels": rig.pixels, "radius": rig.radius},
-        "candidates": predictions.iter().map(|p| json!({
+        "candidates": predictions.iter().zip(&files).map(|(p, file)| json!({
             "name": p.name,
+            "scene": file,
             "motion": p.what,
             "points": p.points,
             "std_errors": p.std_errors.as_deref().map(labelled),

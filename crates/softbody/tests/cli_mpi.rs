@@ -14,20 +14,13 @@ use common::*;
 /// The damped tiny bar (8 steps) launched with `vz`, observed (truth E = 2000, nu = 0.3) into
 /// `dir/NAME.csv`; the start scene (E = 2600, nu = 0.35, launch 0.8 vz) in `dir/NAME.toml`.
 fn recording(dir: &Path, name: &str, vz: f64) {
-    let scene = |young: f64, poisson: f64, vz: f64| {
-        let extra = format!(
-            "[damping]\nmass = 0.1\nstiffness = 0.01\n[initial]\nvelocity = [0.0, 0.0, {vz:?}]\n\
-             [model]\neffects = [\"gravity\", \"damping\", \"initial_velocity\"]"
-        );
-        let (y, p) = (format!("young = {young:?}"), format!("poisson = {poisson:?}"));
-        edited(
-            &tiny_bar(8, &extra),
-            &[("young = 2000.0", &y), ("poisson = 0.3", &p)],
-        )
-    };
-    let truth = write(dir, &format!("{name}-truth.toml"), &scene(2000.0, 0.3, vz));
+    let truth = write(dir, &format!("{name}-truth.toml"), &launched_bar(2000.0, 0.3, vz));
     observe_json(&truth, &dir.join(format!("{name}.csv")), &["--radius", "2"]);
-    write(dir, &format!("{name}.toml"), &scene(2600.0, 0.35, 0.8 * vz));
+    write(
+        dir,
+        &format!("{name}.toml"),
+        &launched_bar(2600.0, 0.35, 0.8 * vz),
+    );
 }
 
 /// A study of three recordings (two ranks: an uneven split) in `dir/study.toml`.

@@ -7,28 +7,19 @@ use std::path::{Path, PathBuf};
 mod common;
 use common::*;
 
-/// The damped tiny bar (8 steps) with `young`, `poisson` and an initial velocity `vz`.
-fn scene(young: f64, poisson: f64, vz: f64) -> String {
-    let extra = format!(
-        "[damping]\nmass = 0.1\nstiffness = 0.01\n[initial]\nvelocity = [0.0, 0.0, {vz:?}]\n\
-         [model]\neffects = [\"gravity\", \"damping\", \"initial_velocity\"]"
-    );
-    let (young, poisson) = (format!("young = {young:?}"), format!("poisson = {poisson:?}"));
-    edited(
-        &tiny_bar(8, &extra),
-        &[("young = 2000.0", &young), ("poisson = 0.3", &poisson)],
-    )
-}
-
 /// Observes the truth (E = 2000, nu = 0.3, push `vz`) into `dir/NAME.csv` (noise-free) and
 /// writes the start scene `dir/NAME.toml` (E = 2600, nu = 0.35, push 0.8 vz).
 fn recording(dir: &Path, name: &str, vz: f64) -> (PathBuf, PathBuf) {
     let obs = dir.join(format!("{name}.csv"));
-    let truth = write(dir, &format!("{name}-truth.toml"), &scene(2000.0, 0.3, vz));
+    let truth = write(dir, &format!("{name}-truth.toml"), &launched_bar(2000.0, 0.3, vz));
     let j = observe_json(&truth, &obs, &["--radius", "2"]);
     assert!(j["points"].as_u64().unwrap() > 500);
     (
-        write(dir, &format!("{name}.toml"), &scene(2600.0, 0.35, 0.8 * vz)),
+        write(
+            dir,
+            &format!("{name}.toml"),
+            &launched_bar(2600.0, 0.35, 0.8 * vz),
+        ),
         obs,
     )
 }
@@ -191,13 +182,13 @@ fn multi_start_reports_every_optimum_and_their_agreement() {
     let dir = tmp("study", "starts");
     // noisy observations: the standard errors that judge agreement are then not 0
     let obs = dir.join("swing.csv");
-    let truth = write(&dir, "truth.toml", &scene(2000.0, 0.3, 0.0));
+    let truth = write(&dir, "truth.toml", &launched_bar(2000.0, 0.3, 0.0));
     observe_json(
         &truth,
         &obs,
         &["--radius", "2", "--noise", "0.002", "--seed", "3"],
     );
-    let start = write(&dir, "start.toml", &scene(2600.0, 0.35, 0.0));
+    let start = write(&dir, "start.toml", &launched_bar(2600.0, 0.35, 0.0));
     let fit = |out: &str| {
         json(&run_on(
             "fit",

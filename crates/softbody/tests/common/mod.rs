@@ -122,3 +122,17 @@ pub fn one_line_error(o: &Output, needle: &str) {
     assert_eq!(err.trim().lines().count(), 1, "one line expected: {err}");
     assert!(err.contains(needle), "`{needle}` not in: {err}");
 }
+
+/// The damped tiny bar (8 steps) with `young`, `poisson` and an initial velocity `vz` (the
+/// recordings of the study tests).
+pub fn launched_bar(young: f64, poisson: f64, vz: f64) -> String {
+    let extra = format!(
+        "[damping]\nmass = 0.1\nstiffness = 0.01\n[initial]\nvelocity = [0.0, 0.0, {vz:?}]\n\
+         [model]\neffects = [\"gravity\", \"damping\", \"initial_velocity\"]"
+    );
+    let (young, poisson) = (format!("young = {young:?}"), format!("poisson = {poisson:?}"));
+    edited(
+        &tiny_bar(8, &extra),
+        &[("young = 2000.0", &young), ("poisson = 0.3", &poisson)],
+    )
+}
