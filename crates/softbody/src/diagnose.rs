@@ -261,51 +261,16 @@ fn finite(x: f64) -> Value {
 
 /// Runs `diagnose`.
 pub fn run(args: Args) -> Result<(), String> {
-    let Loaded {
-        scene,
-        params,
-        kind,
-        observations,
-        eyes,
-        cameras: camera_file,
-        ..
-    } = args.problem.load()?;
-    if kind != CostKind::Surface {
-        return Err("--cost: diagnose measures distances to the simulated surface (--cost surface)".into());
+    if crate::study_fit::is_study_file(&args.problem.scene) {
+        return crate::study_diagnose::run(&args);
     }
-    if observations.is_empty() {
-        return Err(format!(
-            "{}: no observed points",
-            args.problem.observations()?.display()
-        ));
-    }
-    let cameras = match &camera_file {
-        Some(f) => f.cameras()?,
-        None => Vec::new(),
-    };
+    let ready = prepare(&args.problem)?;
     let target = args
         .out
         .clone()
         .unwrap_or_else(|| crate::simulate::default_out(&args.problem.scene, "diagnose"));
     let out = crate::out_dir::OutDir::begin(&target)?;
-    let settings = DiagnoseParams {
-        fit_iterations: args.iterations,
-        refits: args.refits,
-        ..DiagnoseParams::default()
-    };
-    let (d, summary) = run_job(Job {
-        scene: &scene,
-        scene_path: &args.problem.scene,
-        observations: &observations,
-        eyes: &eyes,
-        cameras: &cameras,
-        params,
-        settings,
-        out: &out,
-        quiet: args.json,
-        command: "diagnose",
-        refine_check: !args.no_refine_check,
-    })?;
+    let (d, summary) = diagnose_ready(ready, &args, &args.problem.scene, &out)?;
     out.commit()?;
     if args.json {
         crate::output::print_json(&summary)?;
@@ -314,6 +279,60 @@ pub fn run(args: Args) -> Result<(), String> {
         crate::note!("report: {}", target.display());
     }
     Ok(())
+}
+
+/// A scene and its observations read and checked for a diagnosis, before anything is written.
+pub struct Ready {
+    loaded: Loaded,
+    cameras: Vec<DepthCamera>,
+}
+
+/// Reads and checks what `problem` names ([`ProblemArgs::load`]; the surface cost only, at
+/// least one observed point).
+pub fn prepare(problem: &ProblemArgs) -> Result<Ready, String> {
+    let loaded = problem.load()?;
+    if loaded.kind != CostKind::Surface {
+        return Err("--cost: diagnose measures distances to the simulated surface (--cost surface)".into());
+    }
+    if loaded.observations.is_empty() {
+        return Err(format!(
+            "{}: no observed points",
+            problem.observations()?.display()
+        ));
+    }
+    let cameras = match &loaded.cameras {
+        Some(f) => f.cameras()?,
+        None => Vec::new(),
+    };
+    Ok(Ready { loaded, cameras })
+}
+
+/// Diagnoses what [`prepare`] read (the scene file `scene_path`) into `out`.
+pub fn diagnose_ready(
+    ready: Ready,
+    args: &Args,
+    scene_path: &Path,
+    out: &crate::out_dir::OutDir,
+) -> Result<(Diagnosis, Value), String> {
+    let settings = DiagnoseParams {
+        fit_iterations: args.iterations,
+        refits: args.refits,
+        ..DiagnoseParams::default()
+    };
+    let l = ready.loaded;
+    run_job(Job {
+        scene: &l.scene,
+        scene_path,
+        observations: &l.observations,
+        eyes: &l.eyes,
+        cameras: &ready.cameras,
+        params: l.params,
+        settings,
+        out,
+        quiet: args.json,
+        command: "diagnose",
+        refine_check: !args.no_refine_check,
+    })
 }
 
 /// The diagnosis for a reader, on stderr.

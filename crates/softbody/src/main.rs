@@ -19,6 +19,7 @@ mod progress;
 mod refine_check;
 mod simulate;
 mod study_design;
+mod study_diagnose;
 mod study_fit;
 
 use clap::{Parser, Subcommand};

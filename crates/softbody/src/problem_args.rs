@@ -61,7 +61,7 @@ impl ProblemArgs {
     pub fn load(&self) -> Result<Loaded, String> {
         if crate::study_fit::is_study_file(&self.scene) {
             return Err(format!(
-                "{}: a study file (several recordings); only `softbody fit` takes studies, this command takes one scene",
+                "{}: a study file (several recordings); `softbody fit` and `softbody diagnose` take studies, this command takes one scene",
                 self.scene.display()
             ));
         }

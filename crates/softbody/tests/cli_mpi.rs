@@ -50,6 +50,8 @@ fn mpirun(n: usize, args: &[&str], limit: Duration) -> Output {
         // a CI container runs as root
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        // containers often forbid the cross-process memory copy of the shared-memory transport
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

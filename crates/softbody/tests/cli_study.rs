@@ -271,3 +271,52 @@ fn design_advice_predicts_smaller_errors_for_every_candidate_motion() {
     assert!(best < 0.5 * now, "{d}");
     assert!(out.join("design.png").is_file());
 }
+
+#[test]
+fn diagnose_a_study_diagnoses_every_recording() {
+    let dir = tmp("study", "diagnose");
+    recording(&dir, "swing", 0.0);
+    recording(&dir, "push", 0.5);
+    let study = write(
+        &dir,
+        "study.toml",
+        // each launch fitted too: the model as given can then explain each recording
+        &format!(
+            "{}per_recording = [\"initial_velocity\"]\n{}{}",
+            HEAD,
+            entry("swing"),
+            entry("push")
+        ),
+    );
+    let out = dir.join("report");
+    let j = json(&run(&[
+        "diagnose",
+        study.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--no-refine-check",
+        "--json",
+    ]));
+    let recs = j["recordings"].as_array().unwrap();
+    assert_eq!(recs.len(), 2, "{j}");
+    for (r, name) in recs.iter().zip(["swing", "push"]) {
+        assert_eq!(r["name"], name);
+        // the model as given made the data (noise-free): nothing missing, rms far below 1e-3
+        assert!(r["missing_effect"].is_null(), "{r}");
+        assert!(r["rms"].as_f64().unwrap() < 1e-3, "{r}");
+        let one: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join(name).join("diagnosis.json")).unwrap()).unwrap();
+        assert_eq!(one["verdict"], r["verdict"]);
+    }
+    assert!(out.join("diagnosis.json").is_file());
+    // nothing of the runs' bookkeeping is left behind
+    let left: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".lock") || n.contains(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    // a flag for one scene is refused, naming it
+    let o = run(&["diagnose", study.to_str().unwrap(), "--steps", "3"]);
+    one_line_error(&o, "--steps");
+}

@@ -1,0 +1,85 @@
+//! `softbody diagnose STUDY.toml`: every recording of a study diagnosed on its own
+//! (`crate::diagnose`: the model as given fitted to that recording, where it fails, which
+//! effect is missing). A missing effect often shows in one motion only (the ground in a drop,
+//! not in a swing), so the study's report lists the verdict of each recording side by side.
+//! The recordings are fitted separately here (each its own material); a diagnosis of the
+//! joint model (one material for all while looking for missing effects) is not built.
+//!
+//! The report folder holds `diagnosis.json` (`study`, `recordings[]`: `name`, `scene`,
+//! `observations`, `verdict`, `missing_effect`, `rms`, `noise_floor`, `report`) and one
+//! sub-folder per recording with that recording's full diagnosis.
+
+use crate::diagnose::{diagnose_ready, prepare, print_text, Args};
+use crate::problem_args::ProblemArgs;
+use adjoint::study::Study;
+use serde_json::{json, Value};
+
+/// Runs `diagnose` on a study file.
+pub fn run(args: &Args) -> Result<(), String> {
+    let p = &args.problem;
+    let given = [
+        ("--observations", p.observations.is_some()),
+        ("--params", p.params.is_some()),
+        ("--steps", p.steps.is_some()),
+        ("--cameras", p.cameras.is_some()),
+    ];
+    if let Some((flag, _)) = given.iter().find(|(_, on)| *on) {
+        return Err(format!(
+            "{flag}: {} is a study file, which names each recording's observations, parameters, steps and cameras ({flag} is for one scene)",
+            p.scene.display()
+        ));
+    }
+    let study = Study::load(&p.scene).map_err(|e| e.to_string())?;
+    let names = study.recording_params().join(",");
+    // every recording read and checked before anything is written
+    let mut ready = Vec::with_capacity(study.recordings.len());
+    for rec in &study.recordings {
+        let problem = ProblemArgs {
+            scene: rec.scene.clone(),
+            observations: Some(rec.observations.clone()),
+            params: Some(names.clone()),
+            steps: rec.steps,
+            cost: study.cost.clone().unwrap_or_else(|| p.cost.clone()),
+            cameras: rec.cameras.clone(),
+        };
+        ready.push(prepare(&problem).map_err(|e| format!("recording `{}`: {e}", rec.name))?);
+    }
+    let target = args
+        .out
+        .clone()
+        .unwrap_or_else(|| crate::simulate::default_out(&p.scene, "diagnose"));
+    let out = crate::out_dir::OutDir::begin(&target)?;
+    let mut rows = Vec::with_capacity(ready.len());
+    for (rec, r) in study.recordings.iter().zip(ready) {
+        let at = |e: String| format!("recording `{}`: {e}", rec.name);
+        let sub = crate::out_dir::OutDir::begin(&out.path().join(&rec.name)).map_err(at)?;
+        let (d, _) = diagnose_ready(r, args, &rec.scene, &sub).map_err(at)?;
+        sub.commit().map_err(at)?;
+        if !args.json {
+            crate::note!("recording `{}`:", rec.name);
+            print_text(&d);
+        }
+        rows.push(json!({
+            "name": rec.name,
+            "scene": rec.scene,
+            "observations": rec.observations,
+            "verdict": d.verdict,
+            "missing_effect": d.missing_effect,
+            "rms": d.rms,
+            "noise_floor": d.noise_floor,
+            "report": out.path().join(&rec.name),
+        }));
+    }
+    let mut summary: Value = json!({
+        "study": p.scene,
+        "recordings": rows,
+        "joint": false,
+    });
+    out.finish(&mut summary, "diagnosis.json")?;
+    if args.json {
+        crate::output::print_json(&summary)?;
+    } else {
+        crate::note!("report: {}", target.display());
+    }
+    Ok(())
+}
