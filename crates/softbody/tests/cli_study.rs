@@ -171,7 +171,7 @@ fn bad_studies_and_scene_flags_are_one_line_errors() {
         "--observations",
         dir.join("swing.csv").to_str().unwrap(),
     ]);
-    one_line_error(&o, "only `softbody fit` takes studies");
+    one_line_error(&o, "`softbody fit` and `softbody diagnose` take studies");
     // a scene without --observations
     let o = run(&["fit", dir.join("swing.toml").to_str().unwrap()]);
     one_line_error(&o, "--observations: required");
