@@ -36,13 +36,13 @@ pub fn design(
     out: &Path,
 ) -> Result<(Value, String), String> {
     let s = current.shared;
-    let now = current
-        .uncertainty()
-        .ok_or("--design: the study's Gauss-Newton matrix is singular at the fit")?;
+    let now = current.uncertainty().ok_or(
+        "the study's Gauss-Newton matrix is singular at the fit (a parameter the data do not determine)",
+    )?;
     let rel_now: Vec<f64> = (0..s).map(|i| relative(now.std_errors[i], values[i])).collect();
     let worst = (0..s)
         .max_by(|&a, &b| rel_now[a].total_cmp(&rel_now[b]))
-        .ok_or("--design: the study shares no parameter")?;
+        .ok_or("the study shares no parameter")?;
     let first = &study.recordings[0];
     let scene = cutfem::scene::Scene::load(&first.scene).map_err(|e| e.to_string())?;
     let surface = scene

@@ -379,12 +379,13 @@ fn fit_study_on(args: &Args, study: &Study, ensemble: Option<Rc<dyn Ensemble>>) 
     // make the matrix)
     let gn_picture = if args.design {
         let (xb, evb) = (run.x.clone(), run.ev.clone());
-        Some(
-            joint
-                .picture(&xb, &evb)
-                .map_err(|e| format!("--design: {e}"))?
-                .ok_or("--design: no more observed points than fitted coordinates: no standard errors")?,
-        )
+        Some(match joint.picture(&xb, &evb) {
+            Ok(Some(c)) => Ok(c),
+            Ok(None) => {
+                Err("no more observed points than fitted coordinates: no standard errors".to_string())
+            }
+            Err(e) => Err(e.to_string()),
+        })
     } else {
         None
     };
@@ -464,11 +465,19 @@ fn fit_study_on(args: &Args, study: &Study, ensemble: Option<Rc<dyn Ensemble>>) 
         summary["max_disagreement"] = json!(worst);
         summary["unique"] = json!(worst <= DISAGREE_Z);
     }
+    // a design that cannot be made leaves the fit's report whole, saying why
     let mut advice = None;
     if let Some(current) = &gn_picture {
         let s = joint.shared_len();
         let values: Vec<f64> = fitted.iter().take(s).map(|v| v.1).collect();
-        let (entry, line) = crate::study_design::design(study, current, &x[..s], &values, &out)?;
+        let made = current
+            .as_ref()
+            .map_err(Clone::clone)
+            .and_then(|c| crate::study_design::design(study, c, &x[..s], &values, &out));
+        let (entry, line) = match made {
+            Ok(m) => m,
+            Err(e) => (json!({ "error": e }), format!("experiment design: not made: {e}")),
+        };
         summary["design"] = entry;
         advice = Some(line);
     }

@@ -320,3 +320,33 @@ fn diagnose_a_study_diagnoses_every_recording() {
     let o = run(&["diagnose", study.to_str().unwrap(), "--steps", "3"]);
     one_line_error(&o, "--steps");
 }
+
+#[test]
+fn a_design_that_cannot_be_made_leaves_the_fit_report_whole() {
+    let dir = tmp("study", "design-none");
+    let (_, obs) = recording(&dir, "swing", 0.0);
+    // a model without gravity never moves: E is not determined, its matrix is singular
+    let still = launched_bar(2600.0, 0.35, 0.0).replace("\"gravity\", ", "");
+    write(&dir, "still.toml", &still);
+    let study = write(
+        &dir,
+        "study.toml",
+        &format!(
+            "[study]\nshared = [\"young\"]\n[[recording]]\nscene = \"still.toml\"\nobservations = \"{}\"\n",
+            obs.display()
+        ),
+    );
+    let out = dir.join("report");
+    let j = json(&run(&[
+        "fit",
+        study.to_str().unwrap(),
+        "--design",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]));
+    let e = j["design"]["error"].as_str().unwrap_or_else(|| panic!("{j}"));
+    assert!(e.contains("singular"), "{e}");
+    assert!(j["parameters"]["young"].as_f64().is_some());
+    assert!(out.join("fit.json").is_file());
+}
