@@ -65,6 +65,10 @@ fn main() -> ExitCode {
         }
     };
     let result = match cli.command {
+        // several processes writing the same report: only `fit` shares its work over ranks
+        _ if ensemble::launched() && !matches!(cli.command, Command::Fit(_)) => Err(
+            "started by mpirun with several processes: only `softbody fit` runs across MPI ranks; run this command as one process".to_string(),
+        ),
         Command::Simulate(a) => simulate::run(a),
         Command::Observe(a) => observe::run(a),
         Command::Fit(a) => fit::run(a),
@@ -80,9 +84,7 @@ fn main() -> ExitCode {
         Err(e) if e == ensemble::QUIET_FAILURE => ExitCode::FAILURE,
         Err(e) => {
             // one line, each prefix once, a quoted bad value repeated up to 100 characters
-            let line = out_dir::public_message(&e).replace(['\n', '\r'], " ");
-            let line = cutfem::scene::shorten_quotes(&cutfem::scene::dedupe_prefixes(&line));
-            crate::note!("error: {line}");
+            crate::note!("error: {}", output::error_line(&e));
             ExitCode::FAILURE
         }
     }

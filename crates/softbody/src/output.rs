@@ -34,6 +34,13 @@ pub fn print_json(value: &Value) -> Result<(), String> {
     print_line(&value.to_string())
 }
 
+/// A failure's message as the one line `error: ...` shows: each prefix once, a quoted bad
+/// value repeated up to 100 characters.
+pub fn error_line(e: &str) -> String {
+    let line = crate::out_dir::public_message(e).replace(['\n', '\r'], " ");
+    cutfem::scene::shorten_quotes(&cutfem::scene::dedupe_prefixes(&line))
+}
+
 /// Set on the MPI ranks other than 0 (`crate::ensemble`): their notes would repeat rank 0's.
 pub static SILENT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 

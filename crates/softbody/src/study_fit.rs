@@ -88,7 +88,7 @@ pub fn run(args: &Args) -> Result<(), String> {
 /// parameters shared, so they keep their names; a stiffness field as the recording's own).
 pub fn run_scene(args: &Args) -> Result<(), String> {
     if args.resume {
-        return Err("--resume: not available with --starts (multi-start fits keep no log)".into());
+        return Err("--resume: not available with --starts, --design or mpirun (those fits run as a study, which keeps no log yet)".into());
     }
     // the scene's [fit] section and parameters; the scene and its observations are read and
     // checked once, by `build`
@@ -253,10 +253,30 @@ fn std_errors(run: &Run, n: usize) -> Vec<f64> {
 fn fit_study(args: &Args, study: &Study) -> Result<(), String> {
     let ensemble = crate::ensemble::join()?;
     let lead = ensemble.as_ref().map_or(true, |e| e.rank() == 0);
-    let result = fit_study_on(args, study, ensemble);
-    match result {
-        Err(_) if !lead => Err(crate::ensemble::QUIET_FAILURE.into()),
-        r => r,
+    let result = fit_study_on(args, study, ensemble.clone());
+    let Some(ranks) = &ensemble else {
+        return result;
+    };
+    // the end, on every rank whatever happened (failures in the shared part are the same on
+    // every rank; rank 0 may also fail alone, writing the report): rank 0 says its failure
+    // first, then every rank learns whether any failed; no rank ends before rank 0 has spoken
+    // (a rank that exits with a failure makes mpirun stop the others at once)
+    if lead {
+        match &result {
+            Err(e) if e != crate::output::STDOUT_CLOSED => {
+                crate::note!("error: {}", crate::output::error_line(e));
+            }
+            _ => {}
+        }
+    }
+    let failed = ranks
+        .all_gather(&[u8::from(result.is_err())])
+        .iter()
+        .any(|b| b.first() != Some(&0));
+    if failed {
+        Err(crate::ensemble::QUIET_FAILURE.into())
+    } else {
+        Ok(())
     }
 }
 

@@ -350,3 +350,38 @@ fn a_design_that_cannot_be_made_leaves_the_fit_report_whole() {
     assert!(j["parameters"]["young"].as_f64().is_some());
     assert!(out.join("fit.json").is_file());
 }
+
+#[test]
+fn under_an_mpi_launcher_only_fit_runs_and_only_when_built_with_mpi() {
+    let dir = tmp("study", "launched");
+    let (scene, obs) = recording(&dir, "swing", 0.0);
+    let launched = |args: &[&str]| {
+        softbody()
+            .args(args)
+            .env("OMPI_COMM_WORLD_SIZE", "2")
+            .output()
+            .unwrap()
+    };
+    let o = launched(&[
+        "simulate",
+        scene.to_str().unwrap(),
+        "--out",
+        dir.join("s").to_str().unwrap(),
+    ]);
+    one_line_error(&o, "only `softbody fit` runs across MPI ranks");
+    assert!(!dir.join("s").exists());
+    #[cfg(not(feature = "mpi"))]
+    {
+        let o = launched(&[
+            "fit",
+            scene.to_str().unwrap(),
+            "--observations",
+            obs.to_str().unwrap(),
+            "--out",
+            dir.join("f").to_str().unwrap(),
+        ]);
+        one_line_error(&o, "built without MPI");
+        assert!(!dir.join("f").exists());
+    }
+    let _ = obs;
+}
