@@ -32,7 +32,11 @@
 //!
 //! The recordings are evaluated in parallel (rayon); the sums are taken afterwards in the
 //! recordings' order, so the result is bit-identical whatever the thread count, and a study of
-//! one recording gives its single problem's numbers to the bit ([`joint`]).
+//! one recording gives its single problem's numbers to the bit ([`joint`]). Across processes
+//! (MPI ranks) each rank evaluates the recordings it owns and the results are exchanged before
+//! the same ordered sums ([`ensemble`]), so the rank count does not change a bit either. After a
+//! fit, [`design`] predicts which further motion would shrink the largest standard error most,
+//! and [`starts`] spreads multi-start fits over the plausible box.
 
 pub mod design;
 pub mod ensemble;
