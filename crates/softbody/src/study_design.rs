@@ -2,16 +2,18 @@
 //! short menu of motions of the first recording's body: dropped, squeezed against the ground,
 //! thrown with a spin, held and struck) would shrink the study's largest relative standard
 //! error most (`adjoint::study::design`: each candidate is simulated at the fitted material,
-//! observed noise-free by a rig of virtual depth cameras, and its Gauss-Newton matrix is added
-//! to the study's). The report's `design` entry lists every candidate's predicted standard
+//! observed noise-free by virtual depth cameras like the first recording's, and its
+//! Gauss-Newton matrix is added to the study's). The report's `design` entry lists every candidate's predicted standard
 //! errors; `design.png` shows the largest one now and with each candidate, and `design/NAME.toml`
 //! holds each candidate's scene.
 
 use crate::plot::{palette, BarChart, Figure};
+use adjoint::camera_file::CameraFile;
+use adjoint::fit::cameras_path;
 use adjoint::observe::RigParams;
 use adjoint::params::ParamSet;
 use adjoint::study::design::{candidates, predict, Current, Prediction};
-use adjoint::study::Study;
+use adjoint::study::{Recording, Study};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::path::Path;
@@ -23,6 +25,41 @@ fn relative(se: f64, v: f64) -> f64 {
     } else {
         se
     }
+}
+
+/// The candidates' rig: like the first recording's cameras (their count, image side, field of
+/// view and mean distance from the body's centre) when its camera file says, else 4 cameras of
+/// 32 x 32 pixels at distance 3 (`observe`'s defaults). Also where it came from.
+fn rig_like(rec: &Recording, center: [f64; 3]) -> (RigParams, Option<std::path::PathBuf>) {
+    let path = rec
+        .cameras
+        .clone()
+        .unwrap_or_else(|| cameras_path(&rec.observations));
+    let mut rig = RigParams::default();
+    let Ok(file) = CameraFile::read(&path) else {
+        return (rig, None);
+    };
+    let cams = &file.cameras;
+    if cams.is_empty() {
+        return (rig, None);
+    }
+    rig.cameras = cams.len();
+    if let Some(w) = cams.iter().filter_map(|c| c.width.max(c.height)).max() {
+        rig.pixels = w;
+    }
+    let mean = |v: Vec<f64>| (v.len() == cams.len()).then(|| v.iter().sum::<f64>() / v.len() as f64);
+    let dist = mean(
+        cams.iter()
+            .map(|c| (0..3).map(|d| (c.eye[d] - center[d]).powi(2)).sum::<f64>().sqrt())
+            .collect(),
+    );
+    if let Some(r) = dist.filter(|r| r.is_finite() && *r > 0.0) {
+        rig.radius = r;
+    }
+    if let Some(f) = mean(cams.iter().filter_map(|c| c.fov_y).collect()) {
+        rig.fov_y = f;
+    }
+    (rig, Some(path))
 }
 
 /// Runs the design for `study` fitted at shared coordinates `shared_x` (values `values`, in the
@@ -57,7 +94,8 @@ pub fn design(
         }
     }
     let shared = ParamSet::parse(&study.shared).map_err(|e| e.to_string())?;
-    let rig = RigParams::default();
+    let center = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
+    let (rig, rig_file) = rig_like(first, center);
     let menu = candidates(&scene, lo, hi);
     let bar = crate::progress::bar(menu.len() as u64, "design", false);
     let predictions: Vec<Prediction> = menu
@@ -141,7 +179,8 @@ pub fn design(
         "parameter": label,
         "relative_std_error": rel_now[worst],
         "std_errors": labelled(&now.std_errors),
-        "rig": {"cameras": rig.cameras, "pixels": rig.pixels, "radius": rig.radius},
+        "rig": {"cameras": rig.cameras, "pixels": rig.pixels, "radius": rig.radius,
+                "fov_degrees": rig.fov_y.to_degrees(), "like": rig_file},
         "candidates": predictions.iter().zip(&files).map(|(p, file)| json!({
             "name": p.name,
             "scene": file,

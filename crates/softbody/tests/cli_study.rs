@@ -270,6 +270,14 @@ fn design_advice_predicts_smaller_errors_for_every_candidate_motion() {
     // a landing excites the material more than the swing alone
     assert!(best < 0.5 * now, "{d}");
     assert!(out.join("design.png").is_file());
+    // the candidates are seen like the recording: observe's 4 cameras at radius 2
+    let rig = &d["rig"];
+    assert_eq!(rig["cameras"], 4, "{rig}");
+    assert!((rig["radius"].as_f64().unwrap() - 2.0).abs() < 1e-6, "{rig}");
+    assert!(
+        rig["like"].as_str().unwrap().ends_with("swing.cameras.json"),
+        "{rig}"
+    );
 }
 
 #[test]
