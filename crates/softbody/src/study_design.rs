@@ -63,10 +63,12 @@ fn rig_like(rec: &Recording, center: [f64; 3]) -> (RigParams, Option<std::path::
 }
 
 /// Runs the design for `study` fitted at shared coordinates `shared_x` (values `values`, in the
-/// order of `current`'s shared labels), writes `design.png` into `out` and returns the report
-/// entry and a one-line advice.
+/// order of `current`'s shared labels; `grid`: the first recording's, whose reference surface
+/// places the candidates), writes `design.png` into `out` and returns the report entry and a
+/// one-line advice.
 pub fn design(
     study: &Study,
+    grid: &cutfem::fem::Grid,
     current: &Current,
     shared_x: &[f64],
     values: &[f64],
@@ -82,9 +84,8 @@ pub fn design(
         .ok_or("the study shares no parameter")?;
     let first = &study.recordings[0];
     let scene = cutfem::scene::Scene::load(&first.scene).map_err(|e| e.to_string())?;
-    let surface = scene
-        .build_simulation()
-        .and_then(|sim| sim.grid.surface())
+    let surface = grid
+        .surface()
         .map_err(|e| format!("{}: {e}", first.scene.display()))?;
     let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
     for v in &surface.mesh.vertices {

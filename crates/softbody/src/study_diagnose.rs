@@ -10,38 +10,19 @@
 //! sub-folder per recording with that recording's full diagnosis.
 
 use crate::diagnose::{diagnose_ready, prepare, print_text, Args};
-use crate::problem_args::ProblemArgs;
+use crate::study_fit::{recording_problem, refuse_scene_flags};
 use adjoint::study::Study;
 use serde_json::{json, Value};
 
 /// Runs `diagnose` on a study file.
 pub fn run(args: &Args) -> Result<(), String> {
     let p = &args.problem;
-    let given = [
-        ("--observations", p.observations.is_some()),
-        ("--params", p.params.is_some()),
-        ("--steps", p.steps.is_some()),
-        ("--cameras", p.cameras.is_some()),
-    ];
-    if let Some((flag, _)) = given.iter().find(|(_, on)| *on) {
-        return Err(format!(
-            "{flag}: {} is a study file, which names each recording's observations, parameters, steps and cameras ({flag} is for one scene)",
-            p.scene.display()
-        ));
-    }
+    refuse_scene_flags(p, false)?;
     let study = Study::load(&p.scene).map_err(|e| e.to_string())?;
-    let names = study.recording_params().join(",");
     // every recording read and checked before anything is written
     let mut ready = Vec::with_capacity(study.recordings.len());
     for rec in &study.recordings {
-        let problem = ProblemArgs {
-            scene: rec.scene.clone(),
-            observations: Some(rec.observations.clone()),
-            params: Some(names.clone()),
-            steps: rec.steps,
-            cost: study.cost.clone().unwrap_or_else(|| p.cost.clone()),
-            cameras: rec.cameras.clone(),
-        };
+        let problem = recording_problem(&study, rec, &p.cost);
         ready.push(prepare(&problem).map_err(|e| format!("recording `{}`: {e}", rec.name))?);
     }
     let target = args

@@ -35,15 +35,14 @@ pub fn is_study_file(path: &Path) -> bool {
 }
 
 /// The flags that name one scene's problem are refused for a study (its file names them per
-/// recording), as is `--resume` (not available for studies).
-fn refuse_scene_flags(args: &Args) -> Result<(), String> {
-    let p = &args.problem;
+/// recording), as is `--resume` (not available for studies); `fit` and `diagnose` alike.
+pub fn refuse_scene_flags(p: &ProblemArgs, resume: bool) -> Result<(), String> {
     let given = [
         ("--observations", p.observations.is_some()),
         ("--params", p.params.is_some()),
         ("--steps", p.steps.is_some()),
         ("--cameras", p.cameras.is_some()),
-        ("--resume", args.resume),
+        ("--resume", resume),
     ];
     match given.iter().find(|(_, on)| *on) {
         Some((flag, _)) => Err(format!(
@@ -52,6 +51,19 @@ fn refuse_scene_flags(args: &Args) -> Result<(), String> {
             if *flag == "--resume" { "; studies cannot resume yet" } else { "" }
         )),
         None => Ok(()),
+    }
+}
+
+/// What recording `rec` of `study` names, as one scene's problem: its scene, observations,
+/// steps and cameras, the study's parameters (shared, then its own) and cost (else `cost`).
+pub fn recording_problem(study: &Study, rec: &Recording, cost: &str) -> ProblemArgs {
+    ProblemArgs {
+        scene: rec.scene.clone(),
+        observations: Some(rec.observations.clone()),
+        params: Some(study.recording_params().join(",")),
+        steps: rec.steps,
+        cost: study.cost.clone().unwrap_or_else(|| cost.to_string()),
+        cameras: rec.cameras.clone(),
     }
 }
 
@@ -79,7 +91,7 @@ fn recordings_json(study: &Study, first: &JointEvaluation, last: &JointEvaluatio
 
 /// Runs `fit` on a study file.
 pub fn run(args: &Args) -> Result<(), String> {
-    refuse_scene_flags(args)?;
+    refuse_scene_flags(&args.problem, args.resume)?;
     let study = Study::load(&args.problem.scene).map_err(|e| e.to_string())?;
     fit_study(args, &study)
 }
@@ -125,20 +137,12 @@ pub fn run_scene(args: &Args) -> Result<(), String> {
 /// checked against its steps ([`check_frames`]; the reach is checked on the first evaluation,
 /// [`initial`]). The copies of a multi-start fit, built from files already checked, skip that.
 fn build(study: &Study, args: &Args, robust: Robust, check: bool) -> Result<JointProblem, String> {
-    let names = study.recording_params().join(",");
     let mut problems = Vec::with_capacity(study.recordings.len());
     for rec in &study.recordings {
         let at = |e: String| format!("recording `{}`: {e}", rec.name);
-        let loaded = ProblemArgs {
-            scene: rec.scene.clone(),
-            observations: Some(rec.observations.clone()),
-            params: Some(names.clone()),
-            steps: rec.steps,
-            cost: study.cost.clone().unwrap_or_else(|| args.problem.cost.clone()),
-            cameras: rec.cameras.clone(),
-        }
-        .load()
-        .map_err(at)?;
+        let loaded = recording_problem(study, rec, &args.problem.cost)
+            .load()
+            .map_err(at)?;
         if loaded.observations.is_empty() {
             return Err(at(format!("{}: no observed points", rec.observations.display())));
         }
@@ -490,10 +494,10 @@ fn fit_study_on(args: &Args, study: &Study, ensemble: Option<Rc<dyn Ensemble>>) 
     if let Some(current) = &gn_picture {
         let s = joint.shared_len();
         let values: Vec<f64> = fitted.iter().take(s).map(|v| v.1).collect();
-        let made = current
-            .as_ref()
-            .map_err(Clone::clone)
-            .and_then(|c| crate::study_design::design(study, c, &x[..s], &values, &out));
+        let made = current.as_ref().map_err(Clone::clone).and_then(|c| {
+            let grid = &joint.problems[0].sim.grid;
+            crate::study_design::design(study, grid, c, &x[..s], &values, &out)
+        });
         let (entry, line) = match made {
             Ok(m) => m,
             Err(e) => (json!({ "error": e }), format!("experiment design: not made: {e}")),

@@ -31,13 +31,12 @@ fn entry(name: &str) -> String {
     format!("\n[[recording]]\nname = \"{name}\"\nscene = \"{name}.toml\"\nobservations = \"{name}.csv\"\n")
 }
 
-#[test]
-fn a_joint_fit_recovers_the_material_and_each_push() {
-    let dir = tmp("study", "joint");
-    recording(&dir, "swing", 0.0);
-    recording(&dir, "push", 0.5);
-    let study = write(
-        &dir,
+/// The study of two recordings (swinging from rest, pushed at 0.5), each launch its own.
+fn swing_and_push(dir: &Path) -> PathBuf {
+    recording(dir, "swing", 0.0);
+    recording(dir, "push", 0.5);
+    write(
+        dir,
         "study.toml",
         &format!(
             "{}per_recording = [\"initial_velocity\"]\n{}{}",
@@ -45,7 +44,13 @@ fn a_joint_fit_recovers_the_material_and_each_push() {
             entry("swing"),
             entry("push")
         ),
-    );
+    )
+}
+
+#[test]
+fn a_joint_fit_recovers_the_material_and_each_push() {
+    let dir = tmp("study", "joint");
+    let study = swing_and_push(&dir);
     let out = dir.join("report");
     let o = run(&[
         "fit",
@@ -283,19 +288,8 @@ fn design_advice_predicts_smaller_errors_for_every_candidate_motion() {
 #[test]
 fn diagnose_a_study_diagnoses_every_recording() {
     let dir = tmp("study", "diagnose");
-    recording(&dir, "swing", 0.0);
-    recording(&dir, "push", 0.5);
-    let study = write(
-        &dir,
-        "study.toml",
-        // each launch fitted too: the model as given can then explain each recording
-        &format!(
-            "{}per_recording = [\"initial_velocity\"]\n{}{}",
-            HEAD,
-            entry("swing"),
-            entry("push")
-        ),
-    );
+    // each launch fitted too: the model as given can then explain each recording
+    let study = swing_and_push(&dir);
     let out = dir.join("report");
     let j = json(&run(&[
         "diagnose",

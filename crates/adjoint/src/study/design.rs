@@ -97,9 +97,16 @@ pub fn candidates(base: &Scene, lo: [f64; 3], hi: [f64; 3]) -> Vec<Candidate> {
         })
         .fold(f64::MIN, f64::max);
     let up = scaled(down, -1.0);
-    let free = |scene: &mut Scene| {
+    // the body released from its holds with a launch
+    let launched = |velocity: [f64; 3], angular_velocity: [f64; 3]| {
+        let mut scene = base.clone();
         scene.dirichlet.clear();
-        add_effect(scene, "initial_velocity");
+        add_effect(&mut scene, "initial_velocity");
+        scene.initial = Some(InitialSection {
+            velocity,
+            angular_velocity,
+        });
+        scene
     };
     let ground_at = |scene: &mut Scene, gap: f64| {
         // the ground is `up . x >= height`, `gap` below the body
@@ -116,12 +123,7 @@ pub fn candidates(base: &Scene, lo: [f64; 3], hi: [f64; 3]) -> Vec<Candidate> {
     if g_mag > 0.0 && duration > 0.0 {
         // falls for half the recording, then lands
         let gap = g_mag * duration * duration / 8.0;
-        let mut s = base.clone();
-        free(&mut s);
-        s.initial = Some(InitialSection {
-            velocity: [0.0; 3],
-            angular_velocity: [0.0; 3],
-        });
+        let mut s = launched([0.0; 3], [0.0; 3]);
         ground_at(&mut s, gap);
         out.push(Candidate {
             name: "drop",
@@ -133,12 +135,7 @@ pub fn candidates(base: &Scene, lo: [f64; 3], hi: [f64; 3]) -> Vec<Candidate> {
         // thrown down onto the ground: lands after a quarter of the recording, fast
         let gap = 0.25 * span;
         let speed = 4.0 * gap / duration;
-        let mut s = base.clone();
-        free(&mut s);
-        s.initial = Some(InitialSection {
-            velocity: scaled(down, speed),
-            angular_velocity: [0.0; 3],
-        });
+        let mut s = launched(scaled(down, speed), [0.0; 3]);
         ground_at(&mut s, gap);
         out.push(Candidate {
             name: "squeeze",
@@ -147,13 +144,8 @@ pub fn candidates(base: &Scene, lo: [f64; 3], hi: [f64; 3]) -> Vec<Candidate> {
         });
         // thrown sideways one body length over the recording, half a turn of spin
         let (speed, spin) = (span / duration, std::f64::consts::PI / duration);
-        let mut s = base.clone();
-        free(&mut s);
+        let mut s = launched(scaled(side, speed), scaled(axis, spin));
         s.ground = None;
-        s.initial = Some(InitialSection {
-            velocity: scaled(side, speed),
-            angular_velocity: scaled(axis, spin),
-        });
         out.push(Candidate {
             name: "throw",
             what: format!("thrown sideways at {speed:.3} spinning at {spin:.3} rad/s (free flight)"),

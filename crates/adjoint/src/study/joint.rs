@@ -299,44 +299,43 @@ impl JointProblem {
     /// The joint cost and its adjoint gradient at `x`.
     pub fn gradient(&mut self, x: &[f64]) -> Result<(JointEvaluation, Vec<f64>), Error> {
         let results = self.each(x, |p, xr| p.gradient(xr).map(|(ev, g, _)| (ev, g)))?;
-        let mut g = vec![0.0; self.len()];
-        let mut evs = Vec::with_capacity(results.len());
-        for (r, (ev, gr)) in results.into_iter().enumerate() {
-            self.add_gradient(r, &gr, &mut g);
-            evs.push(ev);
-        }
-        let cost = evs.iter().map(|e| e.cost).sum();
-        Ok((
-            JointEvaluation {
-                cost,
-                recordings: evs,
-                gauss_newton: None,
-            },
-            g,
-        ))
+        Ok(self.summed(results.into_iter().map(|(ev, g)| (ev, g, None))))
     }
 
     /// The joint cost, gradient and Gauss-Newton matrix at `x`.
     pub fn gauss_newton(&mut self, x: &[f64]) -> Result<(JointEvaluation, Vec<f64>, Vec<f64>), Error> {
         let results = self.each(x, |p, xr| p.gauss_newton(xr))?;
+        let (ev, g) = self.summed(results.into_iter().map(|(ev, g, h)| (ev, g, Some(h))));
+        let h = ev.gauss_newton.clone().expect("every recording made its matrix");
+        Ok((ev, g, h))
+    }
+
+    /// The recordings' evaluations, gradients (and Gauss-Newton matrices) summed in the
+    /// recordings' order with the block structure.
+    fn summed(
+        &self,
+        results: impl Iterator<Item = (Evaluation, Vec<f64>, Option<Vec<f64>>)>,
+    ) -> (JointEvaluation, Vec<f64>) {
         let n = self.len();
-        let (mut g, mut h) = (vec![0.0; n], vec![0.0; n * n]);
-        let mut evs = Vec::with_capacity(results.len());
-        for (r, (ev, gr, hr)) in results.into_iter().enumerate() {
+        let mut g = vec![0.0; n];
+        let mut h: Option<Vec<f64>> = None;
+        let mut evs = Vec::with_capacity(self.problems.len());
+        for (r, (ev, gr, hr)) in results.enumerate() {
             self.add_gradient(r, &gr, &mut g);
-            self.add_hessian(r, &hr, &mut h);
+            if let Some(hr) = hr {
+                self.add_hessian(r, &hr, h.get_or_insert_with(|| vec![0.0; n * n]));
+            }
             evs.push(ev);
         }
         let cost = evs.iter().map(|e| e.cost).sum();
-        Ok((
+        (
             JointEvaluation {
                 cost,
                 recordings: evs,
-                gauss_newton: Some(h.clone()),
+                gauss_newton: h,
             },
             g,
-            h,
-        ))
+        )
     }
 
     /// First-order standard errors and covariance of the joint estimate at `x` (one `sigma^2`
