@@ -6,7 +6,7 @@
 
 mod fem_common;
 
-use cutfem::fem::solver::{solve, LinearSolver, MIN_SOLVES_AHEAD};
+use cutfem::fem::solver::{solve, LinearSolver, MAX_REUSED_FACTOR, MIN_SOLVES_AHEAD};
 use cutfem::fem::{Grid, Model, Preconditioner, Simulation, SolverSettings};
 use cutfem::scene::Scene;
 use fem_common::{thesis_cuboid_grid, SMALL_BOX_SCENE};
@@ -223,6 +223,43 @@ fn repeated_matrix_is_factored_only_across_steps() {
     assert_eq!(solve_once(&mut lin), (0, 0));
 }
 
+/// `max_reused_factor` bounds the factor of a repeated matrix: below its size the matrix is
+/// solved by CG at every step and no factor is kept; at or above it, factored as usual.
+#[test]
+fn repeated_matrix_factor_respects_the_size_limit() {
+    let (grid, model) = thesis_cuboid_grid(4.0, false);
+    let mut sim = Simulation::new(grid, model).unwrap();
+    sim.step().unwrap();
+    let a = sim.newmark_matrix().clone();
+    let b = Matrix::eval(&a * &sim.u);
+    let run = |limit: usize| {
+        let s = SolverSettings {
+            preconditioner: Preconditioner::BlockJacobi,
+            max_reused_factor: limit,
+            ..SolverSettings::default()
+        };
+        let mut lin = LinearSolver::new(Some(&sim.grid.positions));
+        let mut its = Vec::new();
+        for _ in 0..3 {
+            lin.new_step();
+            let mut x = Matrix::zeros_shape(b.shape());
+            let info = lin.solve(&a, &b, &mut x, &s).unwrap();
+            assert!(info.residual <= s.cg.tolerance, "{info:?}");
+            its.push(info.iterations);
+        }
+        (its, lin.reused_factor_entries())
+    };
+    let (its, entries) = run(usize::MAX);
+    assert!(
+        its[0] > 0 && its[1..] == [0, 0] && entries > 0,
+        "{its:?} {entries}"
+    );
+    let (its, kept) = run(entries);
+    assert!(its[1..] == [0, 0] && kept == entries, "{its:?}");
+    let (its, kept) = run(entries - 1);
+    assert!(its.iter().all(|&i| i > 0) && kept == 0, "{its:?} {kept}");
+}
+
 #[test]
 fn scene_preconditioner_key() {
     let base = SMALL_BOX_SCENE;
@@ -247,4 +284,32 @@ fn scene_preconditioner_key() {
         err.contains("unknown variant `amg`, expected one of `block_jacobi`, `block_ic0`, `rest_cholesky`"),
         "{err}"
     );
+}
+
+/// `[numerics] reuse_factor_mb` sets the size limit of a repeated matrix's factor (default
+/// `MAX_REUSED_FACTOR` entries, 200 MB); a negative or non-finite one is a one-line error that
+/// names the key.
+#[test]
+fn scene_reuse_factor_mb_key() {
+    let base = SMALL_BOX_SCENE;
+    let path = Path::new("scene.toml");
+    let limit = |text: &str| {
+        Scene::parse(text, path)
+            .unwrap()
+            .solver_settings(SolverSettings::default())
+            .max_reused_factor
+    };
+    assert_eq!(limit(base), MAX_REUSED_FACTOR);
+    assert_eq!(
+        limit(&format!("{base}[numerics]\nreuse_factor_mb = 1000.0\n")),
+        125_000_000
+    );
+    assert_eq!(limit(&format!("{base}[numerics]\nreuse_factor_mb = 0.0\n")), 0);
+    for bad in ["-1.0", "nan", "inf"] {
+        let err = Scene::parse(&format!("{base}[numerics]\nreuse_factor_mb = {bad}\n"), path)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains("numerics.reuse_factor_mb"), "{err}");
+    }
 }

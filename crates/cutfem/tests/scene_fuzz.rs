@@ -62,6 +62,7 @@ cg_tolerance = 1e-8
 cg_max_iterations = 500
 diffusion = "harmonic"
 preconditioner = "block_ic0"
+reuse_factor_mb = 200.0
 element = "incompatible"
 "#,
     r#"

@@ -95,6 +95,8 @@ pub struct SolverSettings {
     /// factor a matrix met twice in a row and solve with it directly while it stays the same
     /// (module docs)
     pub reuse_factor: bool,
+    /// the most entries of such a factor (8 bytes each); a larger one is not made
+    pub max_reused_factor: usize,
 }
 
 impl Default for SolverSettings {
@@ -110,6 +112,7 @@ impl Default for SolverSettings {
             preconditioner: Preconditioner::BlockJacobi,
             refactor_iterations: 25,
             reuse_factor: true,
+            max_reused_factor: MAX_REUSED_FACTOR,
         }
     }
 }
@@ -232,6 +235,11 @@ impl LinearSolver {
         self.factorizations
     }
 
+    /// Entries of the kept factor of a repeated matrix (module docs), 0 without one.
+    pub fn reused_factor_entries(&self) -> usize {
+        self.repeated.as_ref().map_or(0, |(_, c)| c.factor_nnz())
+    }
+
     /// Drops the reused factor (the next `rest_cholesky` solve factors afresh).
     pub fn reset(&mut self) {
         self.chol = None;
@@ -322,7 +330,13 @@ impl LinearSolver {
     /// The repeated-matrix rule's account of a solve with `a` (module docs): records it, and
     /// factors `a` when it repeats; true when a factor of `a` is kept.
     /// `announced`: enough solves with `a` are announced to count it as a repeat at once.
-    fn meet(&mut self, a: &SparseMatrix<Mat3<f64>>, info: &mut SolveInfo, announced: bool) -> bool {
+    fn meet(
+        &mut self,
+        a: &SparseMatrix<Mat3<f64>>,
+        info: &mut SolveInfo,
+        announced: bool,
+        max_entries: usize,
+    ) -> bool {
         let key = fingerprint(a);
         // met again at a later time step than the run of solves with it began (the tangent
         // passes' solves with the step's own matrix do not count unless enough are announced:
@@ -344,7 +358,7 @@ impl LinearSolver {
             let t = Instant::now();
             let chol = match self.repeated.take() {
                 Some((_, mut c)) if c.pattern().same_as(a.pattern()) => c.refactor(a).map(|_| Some(c)),
-                _ => self.analysed(a),
+                _ => self.analysed(a, max_entries),
             };
             info.factor_s += t.elapsed().as_secs_f64();
             match chol {
@@ -369,7 +383,7 @@ impl LinearSolver {
     /// factor it makes) is then what the solve would have left.
     pub fn replay(&mut self, a: &SparseMatrix<Mat3<f64>>, settings: &SolverSettings) {
         if settings.reuse_factor && !settings.direct && self.device.is_none() {
-            self.meet(a, &mut SolveInfo::default(), false);
+            self.meet(a, &mut SolveInfo::default(), false, settings.max_reused_factor);
         }
     }
 
@@ -384,7 +398,7 @@ impl LinearSolver {
         info: &mut SolveInfo,
         announced: bool,
     ) -> Result<bool, Error> {
-        if !self.meet(a, info, announced) {
+        if !self.meet(a, info, announced, settings.max_reused_factor) {
             return Ok(false);
         }
         let chol = &self.repeated.as_ref().expect("factored above").1;
@@ -392,13 +406,14 @@ impl LinearSolver {
         Ok(info.residual <= settings.cg.tolerance)
     }
 
-    /// A factor of `a`, or `None` when its analysis exceeds [`MAX_REUSED_FACTOR`] entries.
+    /// A factor of `a`, or `None` when its analysis exceeds `max_entries` entries.
     fn analysed(
         &self,
         a: &SparseMatrix<Mat3<f64>>,
+        max_entries: usize,
     ) -> Result<Option<SparseCholesky<Mat3<f64>>>, gpumat::Error> {
         let c = SparseCholesky::analyse(a, self.order(a).as_deref())?;
-        if c.factor_nnz() > MAX_REUSED_FACTOR {
+        if c.factor_nnz() > max_entries {
             return Ok(None);
         }
         c.factored(a).map(Some)

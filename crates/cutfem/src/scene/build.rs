@@ -79,6 +79,8 @@ impl Scene {
         s.cg.max_iterations = self.numerics.cg_max_iterations;
         s.preconditioner = self.numerics.preconditioner;
         s.reuse_factor = self.numerics.reuse_factor;
+        // checked finite and >= 0 (`Scene::check`); megabytes of 8-byte entries
+        s.max_reused_factor = (self.numerics.reuse_factor_mb * 1e6 / 8.0).min(usize::MAX as f64) as usize;
         s
     }
 }

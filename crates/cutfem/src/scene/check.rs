@@ -182,6 +182,13 @@ impl Scene {
         self.numerics
             .nitsche_penalty()
             .map_err(|e| Error::format(path, e))?;
+        let mb = self.numerics.reuse_factor_mb;
+        if !(mb.is_finite() && mb >= 0.0) {
+            return Err(Error::format(
+                path,
+                format!("numerics.reuse_factor_mb: {mb} is not a finite number >= 0"),
+            ));
+        }
         let s = self.numerics.surface_subdivision;
         if !(1..=super::numerics::MAX_SURFACE_SUBDIVISION).contains(&s) {
             return Err(Error::format(

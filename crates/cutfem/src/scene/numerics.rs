@@ -37,6 +37,10 @@ pub struct NumericsSection {
     /// (default true; [`crate::fem::solver`])
     #[serde(default = "reuse_factor")]
     pub reuse_factor: bool,
+    /// the largest such factor in megabytes (8 bytes per entry; default 200): a larger one is
+    /// not made and the matrix is solved by CG at every step
+    #[serde(default = "reuse_factor_mb")]
+    pub reuse_factor_mb: f64,
     /// the grid element: "incompatible" (default), "trilinear" (the thesis'),
     /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
     #[serde(default)]
@@ -69,6 +73,9 @@ fn cg_max() -> usize {
 fn reuse_factor() -> bool {
     crate::fem::SolverSettings::default().reuse_factor
 }
+fn reuse_factor_mb() -> f64 {
+    crate::fem::SolverSettings::default().max_reused_factor as f64 * 8e-6
+}
 fn surface_subdivision() -> usize {
     DEFAULT_SURFACE_SUBDIVISION
 }
@@ -93,6 +100,7 @@ impl Default for NumericsSection {
             diffusion: Default::default(),
             preconditioner: crate::fem::Preconditioner::default(),
             reuse_factor: reuse_factor(),
+            reuse_factor_mb: reuse_factor_mb(),
             element: crate::fem::element::Element::default(),
             surface_subdivision: surface_subdivision(),
             surface_method: Default::default(),

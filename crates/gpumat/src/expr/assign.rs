@@ -1,9 +1,11 @@
 //! Assignment: the single place where an expression tree becomes a loop over memory.
 //!
-//! The output is cut into fixed chunks of [`CHUNK`] elements. Below [`PAR_THRESHOLD`]
-//! elements the chunks run on the calling thread; above, in parallel on rayon's pool. Each
-//! output element is computed independently, so the result does not depend on the thread
-//! count. When no node below needs broadcasting or reordering the tree is read by linear
+//! The output is cut into chunks of about [`CHUNK_BYTES`] of reads and writes each (by the
+//! tree's [`Expr::bytes_per_element`]: a sparse product's row reads a whole row of blocks, a
+//! sum of two vectors two elements). Loops that touch fewer than [`PAR_BYTES`] run on the
+//! calling thread; larger ones in parallel on rayon's pool, in at least four chunks per
+//! thread. Each output element is computed independently, so the result does not depend on
+//! the thread count or the chunks. When no node below needs broadcasting or reordering the tree is read by linear
 //! index (one contiguous stream per operand, which the compiler vectorizes); otherwise by
 //! `(r, c, b)` coordinates, in runs along the rows (so broadcast leaves stay vectorizable).
 //! On x86-64 CPUs with AVX2 the loops run in a copy compiled for AVX2 (runtime detection;
@@ -15,10 +17,16 @@ use crate::scalar::Scalar;
 use crate::stats;
 use rayon::prelude::*;
 
-/// Outputs with at least this many elements are evaluated in parallel.
+/// Element count from which the sparse-value fills ([`crate::sparse`]) run in parallel.
 pub const PAR_THRESHOLD: usize = 1 << 15;
-/// Elements per work item.
+/// Loops that read and write at least this many bytes run in parallel (a rayon dispatch costs
+/// a few microseconds; 256 KiB take tens).
+pub const PAR_BYTES: usize = 1 << 18;
+/// Bytes read and written per work item.
+const CHUNK_BYTES: usize = 1 << 16;
+/// Bounds of the elements per work item.
 const CHUNK: usize = 1 << 13;
+const MIN_CHUNK: usize = 256;
 /// Outputs with at least this many rows are evaluated run by run along the rows when the tree
 /// cannot be read linearly; shorter columns are walked element by element.
 const MIN_RUN: usize = 16;
@@ -142,15 +150,30 @@ pub(crate) fn assign_slice<T: Scalar, E: Expr<Elem = T>>(dst: &mut [T], out: Sha
         // SAFETY: as above, without the AVX2 requirement.
         unsafe { eval_chunk(e, out, linear, start, chunk) };
     };
-    if dst.len() >= PAR_THRESHOLD {
-        dst.par_chunks_mut(CHUNK)
+    let bytes = e.bytes_per_element() + std::mem::size_of::<T>();
+    let (parallel, size) = schedule(dst.len(), bytes);
+    if parallel {
+        dst.par_chunks_mut(size)
             .enumerate()
-            .for_each(|(k, chunk)| run(k * CHUNK, chunk));
+            .for_each(|(k, chunk)| run(k * size, chunk));
     } else {
-        for (k, chunk) in dst.chunks_mut(CHUNK).enumerate() {
-            run(k * CHUNK, chunk);
+        for (k, chunk) in dst.chunks_mut(size).enumerate() {
+            run(k * size, chunk);
         }
     }
+}
+
+/// How a loop over `len` elements that each read and write `bytes` runs: in parallel or not,
+/// and the elements per work item (about [`CHUNK_BYTES`] each, at least four items per thread
+/// when parallel).
+pub(crate) fn schedule(len: usize, bytes: usize) -> (bool, usize) {
+    let threads = rayon::current_num_threads();
+    let parallel = threads > 1 && len > 1 && len.saturating_mul(bytes) >= PAR_BYTES;
+    let mut size = (CHUNK_BYTES / bytes.max(1)).clamp(MIN_CHUNK, CHUNK);
+    if parallel {
+        size = size.min(len.div_ceil(4 * threads)).max(16);
+    }
+    (parallel, size.min(len).max(1))
 }
 
 impl<T: Scalar> Matrix<T> {
@@ -263,5 +286,29 @@ mod tests {
         let col = Matrix::<f32>::from_slice(3, 1, 1, &[1.0, 2.0, 3.0]);
         short.assign(col.ex() + crate::scalar(1.0f32));
         assert_eq!(short.as_slice(), &[2.0, 3.0, 4.0, 2.0, 3.0, 4.0]);
+    }
+}
+
+#[cfg(test)]
+mod schedule_tests {
+    use super::{schedule, CHUNK, PAR_BYTES};
+
+    /// Small loops stay on the calling thread; a loop is parallel by the bytes it touches, not
+    /// its element count (a sparse product's few long rows go parallel), in at least four
+    /// items per thread; the items cover the output.
+    #[test]
+    fn loops_are_scheduled_by_the_bytes_they_touch() {
+        let threads = rayon::current_num_threads();
+        assert_eq!(schedule(1000, 12), (false, 1000));
+        assert!(!schedule(PAR_BYTES / 12 - 1, 12).0);
+        assert!(!schedule(0, 12).0 && schedule(0, 12).1 >= 1);
+        let (par, size) = schedule(4000, 2700);
+        assert_eq!(par, threads > 1, "4000 rows of a stiffness matrix");
+        if par {
+            assert!(4000usize.div_ceil(size) >= 4 * threads);
+        }
+        let (par, size) = schedule(1 << 24, 12);
+        assert_eq!(par, threads > 1);
+        assert!(size <= CHUNK && (1usize << 24).div_ceil(size) >= 4 * threads);
     }
 }

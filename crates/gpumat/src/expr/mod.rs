@@ -17,7 +17,7 @@ mod nodes;
 mod overload;
 mod reduce;
 
-pub use assign::PAR_THRESHOLD;
+pub use assign::{PAR_BYTES, PAR_THRESHOLD};
 pub use nodes::*;
 pub use reduce::Axes;
 
@@ -72,6 +72,13 @@ pub trait Expr: Sync + Sized {
     }
     /// Emits the CUDA text that computes this node's element (see [`crate::cuda_codegen`]).
     fn cuda(&self, g: &mut CudaGen) -> String;
+    /// Bytes this tree reads per output element: an estimate that only schedules the loop
+    /// (on the calling thread or in parallel, and how many elements make one work item), never
+    /// what is computed. A leaf reads its element, an operator node adds its operands', a
+    /// sparse product a row's blocks, column indices and vector elements.
+    fn bytes_per_element(&self) -> usize {
+        std::mem::size_of::<Self::Elem>()
+    }
 }
 
 /// The wrapper that gives expressions their operators and methods.

@@ -81,6 +81,9 @@ impl<T: Scalar> Constant<T> {
 }
 impl<T: Scalar> Expr for Constant<T> {
     type Elem = T;
+    fn bytes_per_element(&self) -> usize {
+        0
+    }
     fn shape(&self) -> Shape {
         self.shape
     }
@@ -117,6 +120,9 @@ impl<T: Scalar> Identity<T> {
 }
 impl<T: Scalar> Expr for Identity<T> {
     type Elem = T;
+    fn bytes_per_element(&self) -> usize {
+        0
+    }
     fn shape(&self) -> Shape {
         self.shape
     }
@@ -226,6 +232,9 @@ impl<E: Expr, Op: UnaryOp> Expr for Unary<E, Op> {
         let a = self.e.cuda(g);
         crate::cuda_codegen::unary_text::<E::Elem>(Op::CUDA, &a)
     }
+    fn bytes_per_element(&self) -> usize {
+        self.e.bytes_per_element()
+    }
 }
 
 /// Generates the plumbing of a node with two operands `a`, `b` combined by `$f`.
@@ -236,6 +245,9 @@ macro_rules! binary_node_impl {
             const SELF_REF: bool = A::SELF_REF || B::SELF_REF;
             fn shape(&self) -> Shape {
                 self.shape
+            }
+            fn bytes_per_element(&self) -> usize {
+                self.a.bytes_per_element() + self.b.bytes_per_element()
             }
             fn linear(&self, out: Shape) -> bool {
                 self.a.linear(out) && self.b.linear(out)
@@ -347,6 +359,9 @@ macro_rules! map_node_impl {
             fn shape(&self) -> Shape {
                 self.e.shape()
             }
+            fn bytes_per_element(&self) -> usize {
+                self.e.bytes_per_element()
+            }
             fn linear(&self, out: Shape) -> bool {
                 self.e.linear(out)
             }
@@ -447,6 +462,9 @@ impl<E: Expr> Transpose<E> {
 }
 impl<E: Expr> Expr for Transpose<E> {
     type Elem = E::Elem;
+    fn bytes_per_element(&self) -> usize {
+        self.e.bytes_per_element()
+    }
     fn shape(&self) -> Shape {
         self.e.shape().transposed()
     }
@@ -500,6 +518,9 @@ impl<E: Expr> AsDiagonal<E> {
 }
 impl<E: Expr> Expr for AsDiagonal<E> {
     type Elem = E::Elem;
+    fn bytes_per_element(&self) -> usize {
+        self.e.bytes_per_element()
+    }
     fn shape(&self) -> Shape {
         Shape::new(self.n, self.n, self.e.shape().batches)
     }

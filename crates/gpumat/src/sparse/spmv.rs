@@ -77,6 +77,11 @@ where
     fn linear(&self, _out: Shape) -> bool {
         false
     }
+    fn bytes_per_element(&self) -> usize {
+        // a row's blocks, their column indices and the vector elements they meet
+        let per_entry = std::mem::size_of::<T>() + 4 + self.x.bytes_per_element();
+        self.a.nnz().div_ceil(self.a.rows().max(1)) * per_entry
+    }
     #[inline(always)]
     unsafe fn at(&self, r: usize, c: usize, b: usize) -> Self::Elem {
         let mut acc = Self::Elem::ZERO;
@@ -154,6 +159,11 @@ where
     }
     fn linear(&self, _out: Shape) -> bool {
         false
+    }
+    fn bytes_per_element(&self) -> usize {
+        // a column's blocks, the transpose map's three indices and the vector elements
+        let per_entry = std::mem::size_of::<T>() + 24 + self.x.bytes_per_element();
+        self.a.nnz().div_ceil(self.a.cols().max(1)) * per_entry
     }
     #[inline(always)]
     unsafe fn at(&self, r: usize, c: usize, b: usize) -> Self::Elem {

@@ -111,6 +111,14 @@ impl Simulation {
         self.linear.factorizations()
     }
 
+    /// Entries of the kept factor of a repeated matrix ([`SolverSettings::reuse_factor`]), 0
+    /// without one.
+    ///
+    /// [`SolverSettings::reuse_factor`]: super::SolverSettings::reuse_factor
+    pub fn reused_factor_entries(&self) -> usize {
+        self.linear.reused_factor_entries()
+    }
+
     /// Runs the linear solves on `device` (`None`: on the host); `[numerics] backend = "cuda"`
     /// sets CUDA device 0 ([`crate::fem::device_solve`]).
     pub fn set_device(&mut self, device: Option<std::sync::Arc<dyn gpumat::device::Device>>) {
