@@ -21,9 +21,9 @@ use rayon::prelude::*;
 pub const PAR_THRESHOLD: usize = 1 << 15;
 /// Loops that read and write at least this many bytes run in parallel (a rayon dispatch costs
 /// a few microseconds; 256 KiB take tens).
-pub const PAR_BYTES: usize = 1 << 18;
+pub const PAR_BYTES: usize = 1 << 20;
 /// Bytes read and written per work item.
-const CHUNK_BYTES: usize = 1 << 16;
+const CHUNK_BYTES: usize = 1 << 19;
 /// Bounds of the elements per work item.
 const CHUNK: usize = 1 << 13;
 const MIN_CHUNK: usize = 256;
