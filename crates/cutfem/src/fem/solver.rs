@@ -31,8 +31,9 @@
 //! factors it (sparse Cholesky, nested dissection, the symbolic
 //! analysis kept while the pattern stays) and solves every further system with that matrix by
 //! two triangular solves, checking the relative residual against the CG tolerance (a mismatch
-//! falls back to CG from the direct solution). Factors above [`MAX_REUSED_FACTOR`] entries are
-//! not made. On the 1.05 x 0.22 x 0.22 bar at resolution 20 (about 3 300 unknowns; IC(0)-CG
+//! falls back to CG from the direct solution). Factors above
+//! [`SolverSettings::max_reused_factor`] entries (default [`MAX_REUSED_FACTOR`]; scene key
+//! `[numerics] reuse_factor_mb`) are not made. On the 1.05 x 0.22 x 0.22 bar at resolution 20 (about 3 300 unknowns; IC(0)-CG
 //! needed about 30 iterations per solve) a diagnosis' evaluations got several times faster
 //! (docs/effects.md, "Speed"). The solves within one step do not count, unless at least
 //! [`MIN_SOLVES_AHEAD`] are announced ([`LinearSolver::expect_solves`]): a corotated model's
