@@ -204,6 +204,16 @@ pub fn table_b2(ctx: &mut Ctx) -> Vec<LincombRow> {
         .collect()
 }
 
+/// Table B.2-dram: B.2's k = 2, 5 and 10 at n = 1e7 (quick: k = 10 only), where every vector
+/// streams from memory (40 MB each; at the thesis' n = 1e6 they partly stay in this machine's
+/// cache between the unfused passes, so the traffic ratio is not the ceiling there).
+pub fn table_b2_dram(ctx: &mut Ctx) -> Vec<LincombRow> {
+    let ks: &[usize] = if ctx.quick { &[10] } else { &[2, 5, 10] };
+    ks.iter()
+        .map(|&k| lincomb_row(ctx, 10_000_000, k, None))
+        .collect()
+}
+
 /// Markdown columns of B.1/B.2 (`first` is the varying parameter).
 pub fn columns(first: Col) -> Vec<Col> {
     vec![

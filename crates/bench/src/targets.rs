@@ -117,6 +117,8 @@ pub fn targets(tables: &serde_json::Map<String, Value>) -> Value {
             "B.2 k=10, n=1e6: fused gpumat bandwidth / STREAM triad"),
         "lincomb_k10_fraction_of_fusion_ceiling": target(find("B.2", "k", 10, "fraction_of_fusion_ceiling"), 0.8,
             "B.2 k=10, n=1e6: (unfused time / fused time) / memory traffic ratio 29/11"),
+        "lincomb_k10_n1e7_fraction_of_fusion_ceiling": target(find("B.2-dram", "k", 10, "fraction_of_fusion_ceiling"), 0.8,
+            "B.2-dram k=10, n=1e7 (every vector from memory): (unfused time / fused time) / memory traffic ratio 29/11"),
         "lincomb_n1e7_fraction_of_stream": target(find("B.1", "n", 10_000_000, "fraction_of_stream"), 0.9,
             "B.1 n=1e7: fused gpumat bandwidth / STREAM triad"),
         "lincomb_n1e7_vs_eigen": target(find("B.1", "n", 10_000_000, "speedup_vs_eigen"), 1.0,

@@ -70,6 +70,8 @@ struct Tables {
     b1: Option<Vec<table_lincomb::LincombRow>>,
     #[serde(rename = "B.2", skip_serializing_if = "Option::is_none")]
     b2: Option<Vec<table_lincomb::LincombRow>>,
+    #[serde(rename = "B.2-dram", skip_serializing_if = "Option::is_none")]
+    b2_dram: Option<Vec<table_lincomb::LincombRow>>,
     #[serde(rename = "B.3", skip_serializing_if = "Option::is_none")]
     b3: Option<Vec<table_sparse::SpmvRow>>,
     #[serde(rename = "B.3-bsr", skip_serializing_if = "Option::is_none")]
@@ -214,6 +216,15 @@ fn markdown(machine: &Machine, tables: &serde_json::Map<String, Value>, targets:
             "Table B.2: linear combination of k f32 vectors, n = 10^6",
             "",
             &rows("B.2"),
+            &table_lincomb::columns(col("k", "k", Fmt::Plain)),
+        ));
+    }
+    if tables.contains_key("B.2-dram") {
+        s.push_str(&markdown_table(
+            "Table B.2-dram: linear combination of k f32 vectors, n = 10^7 (every vector from memory)",
+            "B.2 at ten times the length: 40 MB per vector, so each pass of the unfused variant streams \
+             from memory and the traffic ratio is the ceiling of what fusion can give.",
+            &rows("B.2-dram"),
             &table_lincomb::columns(col("k", "k", Fmt::Plain)),
         ));
     }
@@ -385,6 +396,11 @@ fn main() {
         let s = resample(&mut stream_runs);
         rows.iter_mut().for_each(|r| r.set_stream(s));
     }
+    let mut b2_dram = wanted("B.2-dram").then(|| table_lincomb::table_b2_dram(&mut ctx));
+    if let Some(rows) = &mut b2_dram {
+        let s = resample(&mut stream_runs);
+        rows.iter_mut().for_each(|r| r.set_stream(s));
+    }
     let mut b3 = wanted("B.3").then(|| table_sparse::table_b3(&mut ctx));
     if let Some(rows) = &mut b3 {
         let s = resample(&mut stream_runs);
@@ -427,6 +443,7 @@ fn main() {
     let typed = Tables {
         b1,
         b2,
+        b2_dram,
         b3,
         b3_bsr,
         b4,
