@@ -10,7 +10,7 @@ use cutfem::fem::solver::{solve, LinearSolver, MAX_REUSED_FACTOR, MIN_SOLVES_AHE
 use cutfem::fem::{Grid, Model, Preconditioner, Simulation, SolverSettings};
 use cutfem::scene::Scene;
 use fem_common::{thesis_cuboid_grid, SMALL_BOX_SCENE};
-use gpumat::{Matrix, Vec3};
+use gpumat::{Mat3, Matrix, SparseMatrix, Vec3};
 use std::path::Path;
 
 struct Run {
@@ -170,17 +170,23 @@ fn linear_solver_state_and_stateless_solve() {
     }
 }
 
+/// The r = 2 cuboid after one step, its Newmark matrix and `A u` as a right-hand side.
+fn stepped_cuboid_system() -> (Simulation, SparseMatrix<Mat3<f64>>, Matrix<Vec3<f64>>) {
+    let (grid, model) = thesis_cuboid_grid(4.0, false);
+    let mut sim = Simulation::new(grid, model).unwrap();
+    sim.step().unwrap();
+    let a = sim.newmark_matrix().clone();
+    let b = Matrix::eval(&a * &sim.u);
+    (sim, a, b)
+}
+
 /// The repeated-matrix rule (`reuse_factor`): solves with one matrix within a time step stay
 /// CG (a tangent pass' few solves per step) unless `MIN_SOLVES_AHEAD` are announced; the same
 /// matrix met at a later step is factored and solved directly, and the factor serves every
 /// later solve with it; a run starts afresh.
 #[test]
 fn repeated_matrix_is_factored_only_across_steps() {
-    let (grid, model) = thesis_cuboid_grid(4.0, false);
-    let mut sim = Simulation::new(grid, model).unwrap();
-    sim.step().unwrap();
-    let a = sim.newmark_matrix().clone();
-    let b = Matrix::eval(&a * &sim.u);
+    let (sim, a, b) = stepped_cuboid_system();
     let s = SolverSettings {
         preconditioner: Preconditioner::BlockIc0,
         ..SolverSettings::default()
@@ -227,11 +233,7 @@ fn repeated_matrix_is_factored_only_across_steps() {
 /// solved by CG at every step and no factor is kept; at or above it, factored as usual.
 #[test]
 fn repeated_matrix_factor_respects_the_size_limit() {
-    let (grid, model) = thesis_cuboid_grid(4.0, false);
-    let mut sim = Simulation::new(grid, model).unwrap();
-    sim.step().unwrap();
-    let a = sim.newmark_matrix().clone();
-    let b = Matrix::eval(&a * &sim.u);
+    let (sim, a, b) = stepped_cuboid_system();
     let run = |limit: usize| {
         let s = SolverSettings {
             preconditioner: Preconditioner::BlockJacobi,

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 /// Element count from which the sparse-value fills ([`crate::sparse`]) run in parallel.
 pub const PAR_THRESHOLD: usize = 1 << 15;
 /// Loops that read and write at least this many bytes run in parallel (a rayon dispatch costs
-/// a few microseconds; 256 KiB take tens).
+/// a few microseconds; 1 MiB takes tens).
 pub const PAR_BYTES: usize = 1 << 20;
 /// Bytes read and written per work item.
 const CHUNK_BYTES: usize = 1 << 19;
@@ -163,12 +163,17 @@ pub(crate) fn assign_slice<T: Scalar, E: Expr<Elem = T>>(dst: &mut [T], out: Sha
     }
 }
 
+/// True when a loop that reads and writes `bytes` in all should run on rayon's pool.
+pub(crate) fn worth_parallel(bytes: usize) -> bool {
+    rayon::current_num_threads() > 1 && bytes >= PAR_BYTES
+}
+
 /// How a loop over `len` elements that each read and write `bytes` runs: in parallel or not,
 /// and the elements per work item (about [`CHUNK_BYTES`] each, at least four items per thread
 /// when parallel).
 pub(crate) fn schedule(len: usize, bytes: usize) -> (bool, usize) {
     let threads = rayon::current_num_threads();
-    let parallel = threads > 1 && len > 1 && len.saturating_mul(bytes) >= PAR_BYTES;
+    let parallel = len > 1 && worth_parallel(len.saturating_mul(bytes));
     let mut size = (CHUNK_BYTES / bytes.max(1)).clamp(MIN_CHUNK, CHUNK);
     if parallel {
         size = size.min(len.div_ceil(4 * threads)).max(16);
@@ -263,6 +268,7 @@ compound_scale!(f64);
 
 #[cfg(test)]
 mod tests {
+    use super::{schedule, CHUNK, PAR_BYTES};
     use crate::Matrix;
 
     /// The run-by-run path (rows >= MIN_RUN, a leaf broadcast over rows, chunks starting in
@@ -287,11 +293,6 @@ mod tests {
         short.assign(col.ex() + crate::scalar(1.0f32));
         assert_eq!(short.as_slice(), &[2.0, 3.0, 4.0, 2.0, 3.0, 4.0]);
     }
-}
-
-#[cfg(test)]
-mod schedule_tests {
-    use super::{schedule, CHUNK, PAR_BYTES};
 
     /// Small loops stay on the calling thread; a loop is parallel by the bytes it touches, not
     /// its element count (a sparse product's few long rows go parallel), in at least four

@@ -168,9 +168,8 @@ where
     };
     let tasks = out.len() * blocks;
     // the blocks are fixed whatever runs them, so the bits do not depend on this choice
-    let bytes = e.bytes_per_element().max(1);
-    let partials: Vec<T> = if tasks > 1 && (out.len() * len).saturating_mul(bytes) >= super::assign::PAR_BYTES
-    {
+    let bytes = (out.len() * len).saturating_mul(e.bytes_per_element().max(1));
+    let partials: Vec<T> = if tasks > 1 && super::assign::worth_parallel(bytes) {
         (0..tasks).into_par_iter().map(block).collect()
     } else {
         (0..tasks).map(block).collect()
