@@ -149,12 +149,12 @@ impl Stage<'_> {
         let (dt, theta) = (nm.dt, nm.theta);
         let (cm, cw) = (nm.cm, nm.cu);
         let k = sim.stiffness();
-        let m = &sim.mass;
         let (u, v) = (&sim.u, &sim.v);
         let k_lam = Matrix::eval(k * lam);
-        u_bar.assign_with(|ub| ub + m.ex().cwise_mul(lam.ex()) * cm + k_lam.ex() * cw);
-        v_bar.assign_with(|vb| vb + m.ex().cwise_mul(lam.ex()) * nm.cv);
-        let m_lam = Matrix::eval(m.ex().cwise_mul(lam.ex()));
+        // `M lam` (M symmetric: lumped or consistent, [`Simulation::mass_times`])
+        let m_lam = sim.mass_times(lam);
+        u_bar.assign_with(|ub| ub + m_lam.ex() * cm + k_lam.ex() * cw);
+        v_bar.assign_with(|vb| vb + m_lam.ex() * nm.cv);
         let lam_m_du = m_lam.ex().dot(u - u_next);
         let lam_m_v = m_lam.ex().dot(v.ex());
         let s: Vec3<f64> = m_lam.ex().sum();

@@ -11,7 +11,7 @@ use adjoint::problem::Problem;
 use cutfem::fem::advect::Diffusion;
 use cutfem::fem::collision::ContactScheme;
 use cutfem::fem::element::Element;
-use cutfem::fem::{Grid, Model, Simulation};
+use cutfem::fem::{Grid, MassMatrix, Model, Simulation};
 use gpumat::{Matrix, Vec3};
 
 const STEPS: usize = 8;
@@ -147,6 +147,29 @@ fn displacement_cost_gradient_matches_finite_differences_incompatible() {
     };
     let mut sim = Simulation::new(grid(), incompatible(start())).unwrap();
     sim.solver.direct = true;
+    let mut p = Problem::new(sim, all_params(), Box::new(cost), STEPS).unwrap();
+    check_against_fd(&mut p, 1e-6);
+}
+
+/// The same with the consistent mass (`[numerics] mass = "consistent"`): `M lam` in the
+/// adjoint's mass, damping, density and gravity terms is the matrix' product
+/// (`Simulation::mass_times`), every effect on.
+#[test]
+fn displacement_cost_gradient_matches_finite_differences_consistent_mass() {
+    let consistent = |mut m: Model| {
+        m.mass = MassMatrix::Consistent;
+        m
+    };
+    let reference = trajectory(consistent(truth()));
+    let cost = DisplacementCost {
+        reference: (2..=STEPS)
+            .step_by(2)
+            .map(|t| (t, 1.0, reference[t].clone()))
+            .collect(),
+    };
+    let mut sim = Simulation::new(grid(), consistent(start())).unwrap();
+    sim.solver.direct = true;
+    assert!(sim.mass_matrix.is_some());
     let mut p = Problem::new(sim, all_params(), Box::new(cost), STEPS).unwrap();
     check_against_fd(&mut p, 1e-6);
 }

@@ -187,9 +187,9 @@ pub struct CellIntegrals {
     pub area: f64,
     /// The moments of the inside part on the unit cube, `int xi^a eta^b zeta^c` over the
     /// inside part mapped to `[0, 1]^3` (dimensionless; world moments scale with `h^3`), at
-    /// index [`moment_index`]`(a, b, c)` for `a, b, c` in `0..=2`: exact to rounding (like
-    /// `volume`) for total degree `a + b + c <= 5`; the degree-6 moment `(2, 2, 2)` is not
-    /// computed (0) since no element integrand reaches it (`fem::element`, exact quadrature).
+    /// index [`moment_index`]`(a, b, c)` for `a, b, c` in `0..=2`, all exact to rounding (like
+    /// `volume`): degree <= 5 by the degree-5 rule, the degree-6 `(2, 2, 2)` (read only by the
+    /// consistent mass, `int N_i N_j`) by a degree-7 rule ([`quadrature`]).
     pub moments: [f64; 27],
 }
 

@@ -375,6 +375,7 @@ impl Scene {
                 .nitsche_penalty()
                 .unwrap_or(self.numerics.nitsche.default_penalty()),
             element: self.numerics.element,
+            mass: self.numerics.mass,
             dirichlet: self
                 .dirichlet
                 .iter()

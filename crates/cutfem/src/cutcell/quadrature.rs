@@ -1,8 +1,54 @@
 //! Quadrature on the unit cube's pieces: the 14-point degree-5 tetrahedron rule and
 //! Dunavant's degree-4 triangle rule (the integrals of the trilinear `N_i`, eq. 4.2.2-4.2.3,
-//! and the monomial moments of [`super::CellIntegrals::moments`]).
+//! and the monomial moments of [`super::CellIntegrals::moments`] up to degree 5), and the
+//! 35-point Grundmann-Moeller rule of degree 7 for the one moment of degree 6,
+//! `int x^2 y^2 z^2` (the consistent mass' `int N_i N_j`, [`crate::fem::assembly`]).
+//!
+//! Grundmann-Moeller (1978), on the simplex of dimension `n = 3` with `s = 3` (degree
+//! `d = 2 s + 1 = 7`): `int_T f = 6 |T| sum_(i=0..s) w_i sum_(|beta| = s - i) f(x(lambda))`
+//! with barycentric `lambda_j = (2 beta_j + 1) / (d + n - 2 i)` over the 4-tuples `beta` of
+//! non-negative integers and `w_i = (-1)^i 2^(-2s) (d + n - 2i)^d / (i! (d + n - i)!)`. Its
+//! weights are not all positive; it integrates a polynomial (here of degree 6) exactly.
 
 use super::{basis, cross, dot, moment_index, sub, Accum, P3};
+use std::sync::OnceLock;
+
+/// The Grundmann-Moeller rule of degree 7 on a tetrahedron (module docs): (barycentric
+/// coordinates, weight relative to `6 |T|`), 35 points.
+fn gm7() -> &'static [([f64; 4], f64)] {
+    static RULE: OnceLock<Vec<([f64; 4], f64)>> = OnceLock::new();
+    RULE.get_or_init(|| {
+        let (s, n) = (3usize, 3usize);
+        let d = 2 * s + 1;
+        let fact = |k: usize| (1..=k).map(|x| x as f64).product::<f64>();
+        let mut out = Vec::new();
+        for i in 0..=s {
+            let den = (d + n - 2 * i) as f64;
+            let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+            let w = sign * 0.5f64.powi(2 * s as i32) * den.powi(d as i32) / (fact(i) * fact(d + n - i));
+            let m = s - i;
+            for b0 in 0..=m {
+                for b1 in 0..=m - b0 {
+                    for b2 in 0..=m - b0 - b1 {
+                        let beta = [b0, b1, b2, m - b0 - b1 - b2];
+                        out.push((beta.map(|b| (2 * b + 1) as f64 / den), w));
+                    }
+                }
+            }
+        }
+        out
+    })
+}
+
+/// The degree-6 moment `int x^2 y^2 z^2` over the tetrahedron `v` of volume `vol`.
+fn tet_moment_222(v: &[P3; 4], vol: f64) -> f64 {
+    let mut s = 0.0;
+    for (bary, w) in gm7() {
+        let x: P3 = std::array::from_fn(|k| (0..4).map(|j| bary[j] * v[j][k]).sum());
+        s += w * (x[0] * x[1] * x[2]).powi(2);
+    }
+    6.0 * vol * s
+}
 
 /// The positive 14-point degree-5 tetrahedron rule (Walkington 2000; Keast's rule 6): (barycentric
 /// weight of the distinguished vertex, of the others, quadrature weight relative to the volume).
@@ -68,10 +114,11 @@ pub(super) fn add_tet(v: [P3; 4], acc: &mut Accum) {
     for pair in &TET_PAIRS {
         point(std::array::from_fn(|j| if pair.contains(&j) { a } else { b }), w);
     }
+    acc.moments[moment_index(2, 2, 2)] += tet_moment_222(&v, vol);
 }
 
-/// Adds `w x^a y^b z^c` to the moments (all but the degree-6 one, see
-/// [`CellIntegrals::moments`]).
+/// Adds `w x^a y^b z^c` to the moments of degree <= 5 (the degree-6 one has its own rule,
+/// [`tet_moment_222`]).
 fn add_point_moments(x: P3, w: f64, m: &mut [f64; 27]) {
     let p = x.map(|t| [1.0, t, t * t]);
     for c in 0..3 {
@@ -85,7 +132,7 @@ fn add_point_moments(x: P3, w: f64, m: &mut [f64; 27]) {
     }
 }
 
-/// Adds the moments of the box `[lo, lo + size]^3` in closed form (all but the degree-6 one).
+/// Adds the moments of the box `[lo, lo + size]^3` in closed form.
 pub(crate) fn add_box_moments(lo: P3, size: f64, m: &mut [f64; 27]) {
     // int_lo^{lo+size} t^a dt
     let one = |l: f64, a: i32| ((l + size).powi(a + 1) - l.powi(a + 1)) / (a + 1) as f64;
@@ -93,9 +140,7 @@ pub(crate) fn add_box_moments(lo: P3, size: f64, m: &mut [f64; 27]) {
     for c in 0..3 {
         for b in 0..3 {
             for a in 0..3 {
-                if a + b + c < 6 {
-                    m[moment_index(a, b, c)] += p[0][a] * p[1][b] * p[2][c];
-                }
+                m[moment_index(a, b, c)] += p[0][a] * p[1][b] * p[2][c];
             }
         }
     }

@@ -36,6 +36,7 @@
 //! [`gpumat::simd::Simd4`] and run in AVX2 registers where the CPU has them (same values).
 
 mod cells;
+pub mod mass;
 mod mirror;
 mod newmark;
 mod pipeline;

@@ -19,8 +19,8 @@ pub use collision::Ground;
 pub use device_solve::ComputeBackend;
 pub use grid::{Cell, Grid};
 pub use model::{
-    Aabb, ExternalForce, Model, NewmarkCoefficients, NitschePenalty, NitscheQuadrature, NodalDamping,
-    DEFAULT_NITSCHE_GAMMA,
+    Aabb, ExternalForce, MassMatrix, Model, NewmarkCoefficients, NitschePenalty, NitscheQuadrature,
+    NodalDamping, DEFAULT_NITSCHE_GAMMA,
 };
 pub use sim::{NitscheFace, Simulation, StepInfo};
 pub use solver::{LinearSolver, Preconditioner, SolveInfo, SolverSettings};

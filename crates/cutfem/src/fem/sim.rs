@@ -57,8 +57,11 @@ pub struct Simulation {
     pub model: Model,
     /// pattern and maps
     pub assembler: Assembler,
-    /// lumped mass per dof
+    /// lumped mass per dof (the row sums of the consistent mass too)
     pub mass: Matrix<f64>,
+    /// the consistent mass on the assembler's pattern (`[numerics] mass = "consistent"`,
+    /// [`crate::fem::assembly::mass`]); `None` for the lumped one
+    pub mass_matrix: Option<Vec<f64>>,
     /// per cell, the part of its surface held by the Dirichlet boxes (Nitsche terms), if any
     pub dirichlet: Vec<Option<NitscheFace>>,
     /// surface crossings of grid edges
@@ -105,6 +108,7 @@ impl Simulation {
         }
         let assembler = Assembler::new(&grid);
         let mass = assembler.lumped_mass(&grid, model.density);
+        let mass_matrix = consistent_mass(&assembler, &grid, &model);
         let dirichlet = dirichlet_cells(&grid, &model)?;
         let crossings = crossings(&grid);
         let n = grid.dofs();
@@ -119,6 +123,7 @@ impl Simulation {
             model,
             assembler,
             mass,
+            mass_matrix,
             dirichlet,
             crossings,
             steps: 0,
@@ -172,6 +177,9 @@ impl Simulation {
         }
         if model.density != self.model.density {
             self.mass = self.assembler.lumped_mass(&self.grid, model.density);
+        }
+        if model.density != self.model.density || model.mass != self.model.mass {
+            self.mass_matrix = consistent_mass(&self.assembler, &self.grid, &model);
         }
         self.model = model;
         self.k.forget();
@@ -273,6 +281,7 @@ impl Simulation {
         let state = StepState {
             model: &self.model,
             mass: &self.mass,
+            mass_matrix: self.mass_matrix.as_deref(),
             u: &self.u,
             v: &self.v,
         };
@@ -462,9 +471,24 @@ impl Simulation {
         &self.a
     }
 
-    /// Kinetic energy `1/2 sum m v^2`.
+    /// `M x` for the model's mass matrix (lumped: `m_i x_i`; consistent: the sum over the row's
+    /// blocks in column order).
+    pub fn mass_times(&self, x: &Matrix<Vec3<f64>>) -> Matrix<Vec3<f64>> {
+        match &self.mass_matrix {
+            None => Matrix::eval(self.mass.ex().cwise_mul(x.ex())),
+            Some(m) => {
+                let p = self.assembler.pattern();
+                let (rp, cols, xs) = (p.row_ptr(), p.col_idx(), x.as_slice());
+                Matrix::from_fn(p.rows(), 1, 1, |r, _, _| {
+                    (rp[r]..rp[r + 1]).fold(Vec3::default(), |acc, k| acc + xs[cols[k] as usize] * m[k])
+                })
+            }
+        }
+    }
+
+    /// Kinetic energy `1/2 v^T M v`.
     pub fn kinetic_energy(&self) -> f64 {
-        0.5 * self.mass.ex().cwise_mul(self.v.ex().cwise_squared_norm()).sum()
+        0.5 * self.v.ex().dot(self.mass_times(&self.v).ex())
     }
     /// Elastic energy `1/2 u^T K u` of the last assembled (unrotated, or rotated) stiffness
     /// ([`Simulation::stiffness`]).
@@ -484,4 +508,10 @@ impl Simulation {
     pub fn max_displacement(&self) -> f64 {
         self.u.ex().cwise_squared_norm().max().sqrt()
     }
+}
+
+/// The consistent mass of `model` on `assembler`'s pattern, or `None` for the lumped one.
+fn consistent_mass(assembler: &Assembler, grid: &Grid, model: &Model) -> Option<Vec<f64>> {
+    (model.mass == super::model::MassMatrix::Consistent)
+        .then(|| assembler.consistent_mass(grid, model.density))
 }

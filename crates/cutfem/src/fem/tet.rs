@@ -31,7 +31,8 @@
 //! ([`stiffness_block`](super::element::stiffness_block), the same integrand as the grid element). A linear displacement is
 //! represented exactly and its strain energy is `V W(eps)` per element.
 //!
-//! Mass is lumped: each vertex gets `rho V / 4` of each tetrahedron. Gravity is the body force
+//! Mass is lumped: each vertex gets `rho V / 4` of each tetrahedron (whatever `Model::mass`,
+//! which picks the grid bodies' mass matrix). Gravity is the body force
 //! `f_i = m_i g`.
 //!
 //! # Corotation (thesis eq. 2.7.1-2.7.3 in 3D)

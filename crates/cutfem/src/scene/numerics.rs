@@ -45,6 +45,10 @@ pub struct NumericsSection {
     /// "trilinear_exact", "incompatible_corner" ([`crate::fem::element::Element`])
     #[serde(default)]
     pub element: crate::fem::element::Element,
+    /// the mass matrix of a grid body: "lumped" (default; the thesis' diagonal) or
+    /// "consistent" (`rho int N_i N_j`; [`crate::fem::MassMatrix`])
+    #[serde(default)]
+    pub mass: crate::fem::MassMatrix,
     /// the observed surface is extracted from the body's SDF sampled this many times finer than
     /// the simulation grid (1: on the grid itself, as the thesis does), each vertex moved by
     /// the trilinear field of its cell ([`crate::fem::Grid::surface`]); 1..=8
@@ -102,6 +106,7 @@ impl Default for NumericsSection {
             reuse_factor: reuse_factor(),
             reuse_factor_mb: reuse_factor_mb(),
             element: crate::fem::element::Element::default(),
+            mass: Default::default(),
             surface_subdivision: surface_subdivision(),
             surface_method: Default::default(),
             backend: Default::default(),

@@ -37,6 +37,8 @@ pub(crate) struct StepState<'a> {
     pub model: &'a Model,
     /// lumped mass per dof
     pub mass: &'a Matrix<f64>,
+    /// the consistent mass on the pattern, when the model has it (then `mass` is not read)
+    pub mass_matrix: Option<&'a [f64]>,
     /// displacement
     pub u: &'a Matrix<Vec3<f64>>,
     /// velocity
@@ -160,6 +162,7 @@ impl Assembler {
                 nw: &nw,
                 gravity: st.model.gravity,
                 ms,
+                consistent: st.mass_matrix.map(|m| (m, rp, self.pattern.col_idx())),
                 us,
                 vs,
                 cell_rhs: rhs,
@@ -208,6 +211,8 @@ struct StepRows<'a> {
     nw: &'a Coefficients,
     gravity: Vec3<f64>,
     ms: &'a [f64],
+    /// the consistent mass, the row pointers and column indices of its pattern (`A`'s)
+    consistent: Option<(&'a [f64], &'a [usize], &'a [u32])>,
     us: &'a [Vec3<f64>],
     vs: &'a [Vec3<f64>],
     /// the cells' shares of `b`, from cell `cell_base` on
@@ -232,10 +237,11 @@ impl RowSink for StepSink<'_> {
     #[inline(always)]
     fn block(&mut self, r: usize, kk: usize, diagonal: bool, k: Mat3<f64>) {
         let nw = self.rows.nw;
-        let m = if diagonal {
-            nw.diagonal(r, self.rows.ms[r])
-        } else {
-            nw.off
+        let m = match self.rows.consistent {
+            Some((mv, ..)) if diagonal => nw.diagonal(r, mv[kk]),
+            Some((mv, ..)) => Mat3::from_scalar(mv[kk] * nw.cm),
+            None if diagonal => nw.diagonal(r, self.rows.ms[r]),
+            None => nw.off,
         };
         if let Some(kv) = self.k.as_deref_mut() {
             kv[kk - self.base] = k;
@@ -246,8 +252,24 @@ impl RowSink for StepSink<'_> {
     #[inline(always)]
     fn row_start(&mut self, r: usize) {
         let (w, nw) = (self.rows, self.rows.nw);
-        let m = w.ms[r];
-        self.acc = nw.mass_u(r, m, w.us[r]).add(w.vs[r].scale(m).scale(nw.cv));
+        self.acc = match w.consistent {
+            // `cm (M u)_r + cv (M v)_r` in column order, the drag's `c w_r u_r` on its own
+            Some((mv, rp, cols)) => {
+                let (mut mu, mut mvv) = (Vec3::ZERO, Vec3::ZERO);
+                for k in rp[r]..rp[r + 1] {
+                    let c = cols[k] as usize;
+                    mu = mu.add(w.us[c].scale(mv[k]));
+                    mvv = mvv.add(w.vs[c].scale(mv[k]));
+                }
+                nw.mass_u(r, 0.0, w.us[r])
+                    .add(mu.scale(nw.cm))
+                    .add(mvv.scale(nw.cv))
+            }
+            None => {
+                let m = w.ms[r];
+                nw.mass_u(r, m, w.us[r]).add(w.vs[r].scale(m).scale(nw.cv))
+            }
+        };
     }
 
     #[inline(always)]
@@ -264,7 +286,7 @@ impl RowSink for StepSink<'_> {
 
 #[cfg(test)]
 mod tests {
-    use crate::fem::{Aabb, Grid, Model, Simulation};
+    use crate::fem::{Aabb, Grid, MassMatrix, Model, Simulation};
     use crate::shapes::Shape;
     use gpumat::{Mat3, Matrix, SparseMatrix, Vec3};
 
@@ -285,8 +307,8 @@ mod tests {
 
     /// A cuboid held at one end (Nitsche cells), large enough for the parallel passes, a few
     /// steps in, assembled again with `K` kept; corotated or not, with a heterogeneous
-    /// stiffness or not.
-    fn sim(threads: usize, corotation: bool, scaled: bool) -> Simulation {
+    /// stiffness or not, with the lumped or the consistent mass.
+    fn sim(threads: usize, (corotation, scaled, mass): (bool, bool, MassMatrix)) -> Simulation {
         let shape = Shape::Box {
             center: [0.0, 1.0, 0.0],
             size: [1.29, 0.4, 0.8],
@@ -305,6 +327,7 @@ mod tests {
             }],
             stiffness_scale: scaled.then(|| (0..cells).map(|e| 0.5 + (e % 7) as f64 * 0.25).collect()),
             dt: 0.01,
+            mass,
             ..Model::default()
         };
         let pool = rayon::ThreadPoolBuilder::new()
@@ -328,10 +351,16 @@ mod tests {
     /// corotation terms per cell, then per node), so it agrees to rounding: 1e-12 relative.
     #[test]
     fn step_assembly_is_thread_independent_and_matches_the_plain_passes() {
-        for (corotation, scaled) in [(true, false), (true, true), (false, true)] {
-            let one = sim(1, corotation, scaled);
+        let (lumped, consistent) = (MassMatrix::Lumped, MassMatrix::Consistent);
+        for case in [
+            (true, false, lumped),
+            (true, true, lumped),
+            (false, true, lumped),
+            (true, true, consistent),
+        ] {
+            let one = sim(1, case);
             // 8 threads on fewer cores: workers are preempted mid-unit and the others wait
-            for other in [sim(3, corotation, scaled), sim(8, corotation, scaled)] {
+            for other in [sim(3, case), sim(8, case)] {
                 assert_eq!(bits_m(one.stiffness()), bits_m(other.stiffness()));
                 assert_eq!(bits_m(one.newmark_matrix()), bits_m(other.newmark_matrix()));
                 assert_eq!(bits_v(one.newmark_rhs()), bits_v(other.newmark_rhs()));
@@ -350,11 +379,23 @@ mod tests {
             let (model, dt, theta) = (&s.model, s.model.dt, s.model.theta);
             let cm = 1.0 / (theta * dt) + model.damping_mass;
             let mut a = SparseMatrix::zeros(k.pattern().clone(), 1);
-            a.assign(
-                (s.mass.ex().cast::<Mat3<f64>>().as_diagonal() * cm
-                    + k.ex() * (model.damping_stiffness + theta * dt))
-                    .sparse_view(k.pattern()),
-            );
+            match &s.mass_matrix {
+                None => a.assign(
+                    (s.mass.ex().cast::<Mat3<f64>>().as_diagonal() * cm
+                        + k.ex() * (model.damping_stiffness + theta * dt))
+                        .sparse_view(k.pattern()),
+                ),
+                Some(mv) => {
+                    let mut m3 = SparseMatrix::zeros(k.pattern().clone(), 1);
+                    for (b, &x) in m3.batch_values_mut(0).iter_mut().zip(mv) {
+                        *b = Mat3::from_scalar(x);
+                    }
+                    a.assign(
+                        (m3.ex() * cm + k.ex() * (model.damping_stiffness + theta * dt))
+                            .sparse_view(k.pattern()),
+                    );
+                }
+            }
             assert_eq!(bits_m(&a), bits_m(s.newmark_matrix()));
             // the full force: f plus the corotation forces
             let mut f = s.force().clone();
@@ -363,10 +404,11 @@ mod tests {
                     .add_corotation_forces(&s.grid, blocks, r, scale, &mut f);
             }
             let mut b = Matrix::zeros(k.rows(), 1, 1);
+            let (mu, mv) = (s.mass_times(&s.u), s.mass_times(&s.v));
             b.assign(
-                s.mass.ex().cwise_mul(s.u.ex()) * cm
+                mu.ex() * cm
                     + (&k * &s.u) * (model.damping_stiffness - (1.0 - theta) * dt)
-                    + s.mass.ex().cwise_mul(s.v.ex()) * (1.0 / theta)
+                    + mv.ex() * (1.0 / theta)
                     + f.ex() * dt,
             );
             let d = Matrix::eval(b.ex() - s.newmark_rhs().ex());
@@ -387,7 +429,7 @@ mod tests {
     /// `assemble_system`, and the `K` computed on demand afterwards is the kept one.
     #[test]
     fn step_without_k_matches_assemble_system() {
-        let mut s = sim(2, true, false);
+        let mut s = sim(2, (true, false, MassMatrix::Lumped));
         let (k, a, b, f) = (
             s.stiffness().clone(),
             s.newmark_matrix().clone(),
