@@ -67,36 +67,37 @@ GRAVITY = np.array([0.0, -10.0, 0.0])
 # ---------------------------------------------------------------------------
 # The cases.  Every number that defines "the real world" is here.
 # ---------------------------------------------------------------------------
+# The cantilever's bar: body, material, damping, clamp and meshes (Q2 hexahedra: cells along
+# x, y, z), shared by the cases "cantilever" and "twist".
+BAR = dict(
+    body=dict(kind="box", center=[0.525, 1.0, 0.0], size=[1.05, 0.22, 0.22]),
+    young=2400.0, poisson=0.35, density=1.0,
+    damping_mass=0.8, damping_stiffness=0.0,
+    clamp=dict(axis=0, side="min"),
+    ground=None,
+    mesh=dict(reference=dict(cells=[40, 8, 8], grading=1.5),
+              coarse=dict(cells=[20, 4, 4], grading=1.5)),
+    substeps=8,
+)
+
 CASES = {
     "cantilever": dict(
+        BAR,
         description="Box 1.05 x 0.22 x 0.22 clamped at its x-min end face, swinging "
                     "down under gravity from rest.",
-        body=dict(kind="box", center=[0.525, 1.0, 0.0], size=[1.05, 0.22, 0.22]),
-        young=2400.0, poisson=0.35, density=1.0,
-        damping_mass=0.8, damping_stiffness=0.0,
-        clamp=dict(axis=0, side="min"),
-        ground=None,
         dt=0.02, steps=50, obs_every=2, points=300,
         sigma=0.01, seed=20261201,
-        # Q2 hexahedra: cells along x, y, z
-        mesh=dict(reference=dict(cells=[40, 8, 8], grading=1.5),
-                  coarse=dict(cells=[20, 4, 4], grading=1.5)),
-        substeps=8,
     ),
     # The cantilever's swing under gravity is bending: it sees E (and the density), but
     # along nu the cost is flat (a fit's standard error on nu is 0.05).  The same bar,
     # given a spin about its own axis at t = 0, twists as well as swings: torsion sees
     # the shear modulus G = E / (2 (1 + nu)), bending sees E, so the motion sees nu.
     "twist": dict(
+        BAR,
         description="The cantilever's bar (1.05 x 0.22 x 0.22, clamped at its x-min end face) "
                     "swinging down under gravity while it twists about its own axis: every "
                     "point that is not clamped starts with the velocity of a rigid spin "
                     "w x (X - c) about the bar's center c.",
-        body=dict(kind="box", center=[0.525, 1.0, 0.0], size=[1.05, 0.22, 0.22]),
-        young=2400.0, poisson=0.35, density=1.0,
-        damping_mass=0.8, damping_stiffness=0.0,
-        clamp=dict(axis=0, side="min"),
-        ground=None,
         # first torsion mode ~41 rad/s (period 0.15 s), first bending mode ~10 rad/s:
         # 0.4 s are 2.6 twists and half a swing; tip twist amplitude ~0.3 rad
         angular_velocity=[10.0, 0.0, 0.0],
@@ -107,9 +108,6 @@ CASES = {
         scene_numerics=dict(mass="consistent"),
         scene_numerics_note="our consistent mass: the lumped one's rotational inertia is "
                             "10% too large for this bar (docs/simulation.md, \"Mass\")",
-        mesh=dict(reference=dict(cells=[40, 8, 8], grading=1.5),
-                  coarse=dict(cells=[20, 4, 4], grading=1.5)),
-        substeps=8,
     ),
     "block": dict(
         description="Thick block 0.5 x 0.6 x 0.5 clamped at its base face (y = 0), "
