@@ -129,26 +129,31 @@ fn displacement_cost_gradient_matches_finite_differences() {
     check_against_fd(&mut p, 1e-6);
 }
 
-/// The same with the incompatible element (exact integration, condensed bubbles, the empty
-/// part at `FICTITIOUS_STIFFNESS`, rotations from the inside-averaged deformation gradient).
-#[test]
-fn displacement_cost_gradient_matches_finite_differences_incompatible() {
-    let incompatible = |mut m: Model| {
-        m.element = Element::Incompatible;
-        assert!(m.corotation);
-        m
-    };
-    let reference = trajectory(incompatible(truth()));
+/// [`displacement_cost_gradient_matches_finite_differences`] with the truth and the start
+/// model passed through `edit`.
+fn displacement_cost_gradient_with(edit: impl Fn(Model) -> Model) {
+    let reference = trajectory(edit(truth()));
     let cost = DisplacementCost {
         reference: (2..=STEPS)
             .step_by(2)
             .map(|t| (t, 1.0, reference[t].clone()))
             .collect(),
     };
-    let mut sim = Simulation::new(grid(), incompatible(start())).unwrap();
+    let mut sim = Simulation::new(grid(), edit(start())).unwrap();
     sim.solver.direct = true;
     let mut p = Problem::new(sim, all_params(), Box::new(cost), STEPS).unwrap();
     check_against_fd(&mut p, 1e-6);
+}
+
+/// The same with the incompatible element (exact integration, condensed bubbles, the empty
+/// part at `FICTITIOUS_STIFFNESS`, rotations from the inside-averaged deformation gradient).
+#[test]
+fn displacement_cost_gradient_matches_finite_differences_incompatible() {
+    displacement_cost_gradient_with(|mut m| {
+        m.element = Element::Incompatible;
+        assert!(m.corotation);
+        m
+    });
 }
 
 /// The same with the consistent mass (`[numerics] mass = "consistent"`): `M lam` in the
@@ -156,22 +161,10 @@ fn displacement_cost_gradient_matches_finite_differences_incompatible() {
 /// (`Simulation::mass_times`), every effect on.
 #[test]
 fn displacement_cost_gradient_matches_finite_differences_consistent_mass() {
-    let consistent = |mut m: Model| {
+    displacement_cost_gradient_with(|mut m| {
         m.mass = MassMatrix::Consistent;
         m
-    };
-    let reference = trajectory(consistent(truth()));
-    let cost = DisplacementCost {
-        reference: (2..=STEPS)
-            .step_by(2)
-            .map(|t| (t, 1.0, reference[t].clone()))
-            .collect(),
-    };
-    let mut sim = Simulation::new(grid(), consistent(start())).unwrap();
-    sim.solver.direct = true;
-    assert!(sim.mass_matrix.is_some());
-    let mut p = Problem::new(sim, all_params(), Box::new(cost), STEPS).unwrap();
-    check_against_fd(&mut p, 1e-6);
+    });
 }
 
 #[test]
