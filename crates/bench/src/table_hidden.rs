@@ -1,7 +1,7 @@
 //! Table H: the diagnosis on the independent hidden-effect reference cases
 //! (`tests/reference_values/independent/hidden`, made by `tools/reference/hidden.py` with
-//! scikit-fem: a clamped bar in six physical variants, three observation styles, four noise
-//! levels). Every case is run as a user runs it: the `softbody diagnose` binary (built beside
+//! scikit-fem: a clamped bar in eight physical variants, three observation styles, five noise
+//! levels, and a landing sphere). Every case is run as a user runs it: the `softbody diagnose` binary (built beside
 //! `tables`) on the case's scene and observations, default settings, its discretisation check
 //! included.
 //!
@@ -137,8 +137,9 @@ fn run_case(bin: &Path, dir: &Path, case: &Value) -> Result<Row, String> {
     })
 }
 
-/// Runs Table H (`quick`: the cases at noise 0.01 observed by area samples only).
-pub fn table(quick: bool) -> Vec<Row> {
+/// Runs Table H (`quick`: the cases at noise 0.01 observed by area samples only; `only`: the
+/// cases whose names start with one of these prefixes, all when empty), in `cases.json`'s order.
+pub fn table(quick: bool, only: &[String]) -> Vec<Row> {
     let dir = cases_dir();
     let index: Value = match std::fs::read_to_string(dir.join("cases.json"))
         .map_err(|e| e.to_string())
@@ -155,6 +156,12 @@ pub fn table(quick: bool) -> Vec<Row> {
     let cases: Vec<&Value> = cases
         .iter()
         .filter(|c| !quick || (c["style"] == "samples" && c["sigma"].as_f64() == Some(0.01)))
+        .filter(|c| {
+            only.is_empty()
+                || only
+                    .iter()
+                    .any(|p| c["case"].as_str().is_some_and(|n| n.starts_with(p.as_str())))
+        })
         .collect();
     // two diagnoses at a time (each a process with its own threads): the cases are independent
     // and each one's result does not depend on the others
@@ -198,6 +205,39 @@ pub fn table(quick: bool) -> Vec<Row> {
 
 /// Diagnoses run at a time by [`table`].
 const JOBS: usize = 2;
+
+/// The rows of `earlier` with those of `fresh` in place of the rows of the same case (fresh
+/// cases that `earlier` lacks added), ordered as `cases.json` lists the cases; rows of cases it
+/// does not list keep their order at the end.
+pub fn merge(earlier: Vec<Row>, fresh: Vec<Row>) -> Vec<Row> {
+    let order: Vec<String> = std::fs::read_to_string(cases_dir().join("cases.json"))
+        .ok()
+        .and_then(|s| serde_json::from_str::<Value>(&s).ok())
+        .and_then(|v| {
+            v["cases"].as_array().map(|a| {
+                a.iter()
+                    .filter_map(|c| c["case"].as_str().map(str::to_string))
+                    .collect()
+            })
+        })
+        .unwrap_or_default();
+    let position = |case: &str| order.iter().position(|c| c == case).unwrap_or(usize::MAX);
+    let mut rows = earlier;
+    for row in fresh {
+        match rows.iter().position(|r| r.case == row.case) {
+            Some(i) => rows[i] = row,
+            None => rows.push(row),
+        }
+    }
+    // a stable sort: rows of cases.json in its order, the others (older cases) where they were
+    let mut keyed: Vec<(usize, usize, Row)> = rows
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| (position(&r.case), i, r))
+        .collect();
+    keyed.sort_by_key(|(p, i, _)| (*p, *i));
+    keyed.into_iter().map(|(_, _, r)| r).collect()
+}
 
 /// The rows of Table H in an earlier `tables --json` report.
 pub fn rows_from_report(path: &Path) -> Result<Vec<Row>, String> {
@@ -327,7 +367,7 @@ pub fn markdown(rows: &[Value]) -> String {
          verdict names it as an alternative the data cannot tell from the one called missing (Delta \
          BIC within 10); false alarm = share of the controls \
          (nothing hidden: the bar as it is, with a stiff inclusion too small to see, the complete \
-         models of four variants, the landing sphere with its ground) with an effect called \
+         models of five variants, the landing sphere with its ground) with an effect called \
          missing.",
         &curve_rows,
         &[
@@ -529,5 +569,37 @@ mod tests {
         assert_eq!(effects(&rows), vec!["drag", "clamp"]);
         let pic = svg(&rows);
         assert!(pic.starts_with("<svg") && pic.contains("false alarms") && pic.ends_with("</svg>\n"));
+    }
+
+    #[test]
+    fn merge_replaces_rerun_cases_and_orders_as_cases_json() {
+        let row = |case: &str, seconds: f64| -> Row {
+            serde_json::from_value(json!({"case": case, "hidden": null, "style": "samples",
+                "sigma": 0.01, "margin": null, "named_first": null, "missing": null, "right": null,
+                "tied": null, "rms_after_ratio": null, "floor_ratio": null, "discretisation": null,
+                "on_bounds": "", "seconds": seconds, "error": null}))
+            .unwrap()
+        };
+        let earlier = vec![
+            row("none/samples-0.01", 1.0),
+            row("gone/samples-0.01", 2.0),
+            row("gravity/samples-0.01", 3.0),
+        ];
+        let fresh = vec![
+            row("gravity/samples-0.01", 4.0),
+            row("inclusion/samples-0.01", 5.0),
+        ];
+        let merged = merge(earlier, fresh);
+        let got: Vec<(&str, f64)> = merged.iter().map(|r| (r.case.as_str(), r.seconds)).collect();
+        // cases.json lists none, inclusion, gravity in this order; `gone` is not listed
+        assert_eq!(
+            got,
+            vec![
+                ("none/samples-0.01", 1.0),
+                ("inclusion/samples-0.01", 5.0),
+                ("gravity/samples-0.01", 4.0),
+                ("gone/samples-0.01", 2.0),
+            ]
+        );
     }
 }

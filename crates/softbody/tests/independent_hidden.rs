@@ -4,7 +4,8 @@
 //! diagnosis issue's targets. The fast subset: the cases observed by 120 area samples per frame
 //! with noise 0.01, but for the two slowest (the stiffness field and the clamp, about a minute
 //! each; the full table over every case, three styles and five noise levels is Table H of the
-//! `tables` binary, docs/effects.md).
+//! `tables` binary, docs/effects.md), and the control seen by the depth camera at the smallest
+//! noise (the noise floor's hardest case).
 //!
 //! Targets, per case (margin = rms of the model as given / the true noise sigma):
 //! - a hidden effect with margin >= 1.5 is named first and called missing, and after its refit
@@ -12,7 +13,7 @@
 //!   an alternative that the data cannot tell from the effect named first (Delta BIC within the
 //!   threshold): on this slender bar Rayleigh mass damping and surface drag slow every section
 //!   alike (its surface per volume is the same along the bar), their refits reach the same rms
-//!   (measured: 0.010141 and 0.010148 at noise 0.01) and the BIC prefers drag's one parameter;
+//!   (measured: 0.0097064 and 0.0097073 at noise 0.01) and the BIC prefers drag's one parameter;
 //! - a control (nothing hidden: the bar as it is, with a stiff inclusion too small to see, or
 //!   with an effect at its true strength that the scene already has and fits) has nothing
 //!   called missing;
@@ -41,8 +42,8 @@ fn case(name: &str) -> Value {
         .clone()
 }
 
-/// Diagnoses case `name` and checks the targets (module docs).
-fn check(name: &str) {
+/// Diagnoses case `name`, checks the targets (module docs) and returns `diagnosis.json`.
+fn check(name: &str) -> Value {
     let c = case(name);
     let sigma = c["sigma"].as_f64().unwrap();
     let hidden = c["hidden"].as_str();
@@ -90,6 +91,7 @@ fn check(name: &str) {
         }
         Some(_) => {}
     }
+    d
 }
 
 #[test]
@@ -140,4 +142,24 @@ fn control_with_the_clamp_in_the_scene_has_nothing_missing() {
 #[test]
 fn control_with_the_initial_velocity_in_the_scene_has_nothing_missing() {
     check("complete-initial_velocity/samples-0.01");
+}
+
+/// Geometric nonlinearity (the reference is St. Venant-Kirchhoff; the scene linear).
+/// Below the margin of the targets (1.12 sigma), and still found (measured: Delta BIC -608).
+#[test]
+fn hidden_corotation() {
+    let d = check("corotation/samples-0.01");
+    assert_eq!(d["missing_effect"], "corotation", "verdict: {}", d["verdict"]);
+}
+
+#[test]
+fn control_with_corotation_in_the_scene_has_nothing_missing() {
+    check("complete-corotation/samples-0.01");
+}
+
+/// The depth camera at the smallest noise, where the model's own error is about the noise: the
+/// depth images' floor reads 1.24 sigma there, the residuals' (the smaller, stated) within 20%.
+#[test]
+fn control_seen_by_the_depth_camera_at_the_smallest_noise() {
+    check("none/camera-0.0025");
 }

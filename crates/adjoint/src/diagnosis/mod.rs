@@ -122,9 +122,9 @@ pub struct Diagnosis {
     pub rms_start: f64,
     /// rms of the model as given after its fit
     pub rms: f64,
-    /// the estimated deviation of the measurement noise: from the depth images when the cameras'
-    /// intrinsics are known ([`residuals::noise_floor`]), else from the residuals at the fit
-    /// ([`floor::residual_floor`])
+    /// the estimated deviation of the measurement noise ([`floor::stated_floor`]): from the
+    /// residuals at the fit ([`floor::residual_floor`]) or, when the cameras' intrinsics are
+    /// known and that is smaller, from the depth images ([`residuals::noise_floor`])
     pub noise_floor: f64,
     /// how [`Diagnosis::noise_floor`] was estimated: `"depth images"`, `"residuals"` (at the fit
     /// as given), `"residuals at the best refit"` (the candidate with the smallest rms after its
@@ -301,10 +301,11 @@ pub fn diagnose(
         points: records.len(),
     };
     let candidates = search.candidates(&data, progress, total);
-    if noise_floor_method == "residuals" {
-        // the residual floor is an upper bound that a large smooth misfit inflates: the best
-        // refit's residuals give a tighter one (measured on the independent hidden-gravity bar:
-        // 2.54 sigma at the fit as given, rms 13.6 sigma)
+    if noise_floor_method != "plane fits" {
+        // the residual floor is an upper bound that a large smooth misfit inflates, the depth
+        // images' one that shape and motion inflate: the best refit's residuals give a tighter
+        // one (measured on the independent hidden-gravity bar: 2.54 sigma at the fit as given,
+        // rms 13.6 sigma)
         if let Some(f) = refit_floor(&candidates, steps, &cost, setup.observations)? {
             if f.sigma < noise_floor {
                 noise_floor = f.sigma;

@@ -46,6 +46,11 @@ struct Args {
     /// (to redraw its markdown and picture).
     #[arg(long, value_name = "REPORT.json")]
     hidden_rows: Option<std::path::PathBuf>,
+    /// Table H: diagnose only the cases whose names start with one of these prefixes
+    /// (comma-separated, e.g. `corotation/,complete-corotation/`); with `--hidden-rows`, their
+    /// rows replace those of the earlier report (new cases join in `cases.json`'s order).
+    #[arg(long, value_name = "PREFIXES", value_delimiter = ',')]
+    hidden_cases: Vec<String>,
     /// Write the pictures of the tables into this folder: B.1, B.2 and scaling as PNG with an
     /// SVG twin (`b1_time_vs_n.png`, `b2_time_vs_k.png`, `scaling.png`), Table H as
     /// `detection_curves.svg`.
@@ -422,12 +427,20 @@ fn main() {
         None => (None, Vec::new()),
     };
     let d = wanted("D").then(|| table_diagnose::table(args.quick));
-    let h = wanted("H").then(|| match &args.hidden_rows {
-        Some(path) => table_hidden::rows_from_report(path).unwrap_or_else(|e| {
-            eprintln!("error: {e}");
-            std::process::exit(1);
-        }),
-        None => table_hidden::table(args.quick),
+    let h = wanted("H").then(|| {
+        let earlier = args.hidden_rows.as_ref().map(|path| {
+            table_hidden::rows_from_report(path).unwrap_or_else(|e| {
+                eprintln!("error: {e}");
+                std::process::exit(1);
+            })
+        });
+        match earlier {
+            Some(rows) if args.hidden_cases.is_empty() => rows,
+            earlier => {
+                let fresh = table_hidden::table(args.quick, &args.hidden_cases);
+                table_hidden::merge(earlier.unwrap_or_default(), fresh)
+            }
+        }
     });
     if let (Some(rows), Some(dir)) = (&h, &args.figures) {
         let rows: Vec<Value> = rows
