@@ -14,8 +14,8 @@
 //!    briefly and ranked by the Bayesian information criterion.
 //! 4. **Verdict**: an effect is called missing when the data favour it strongly
 //!    (`Delta BIC < -10`), it removes at least 3% of the rms, and the model's rms is above a
-//!    tenth of the noise floor (below it the residual is the numerical noise of an exact model,
-//!    where a likelihood ratio means nothing). The model *fails* when its rms exceeds 1.05 x
+//!    tenth of the noise floor and above [`numerical_precision`] (below, the residual is the
+//!    numerical noise of an exact model, where a likelihood ratio means nothing). The model *fails* when its rms exceeds 1.05 x
 //!    the noise floor; the estimated floor is not needed to call an effect missing (it can be
 //!    a few percent high: a hidden stiff inclusion left the rms at 1.01x the estimate while
 //!    the field took 5% of it, Delta BIC -480). Otherwise: nothing missing.
@@ -89,12 +89,36 @@ pub struct DiagnoseParams {
     pub bic_threshold: f64,
     /// the model fails when its rms exceeds this many noise floors
     pub fail_ratio: f64,
-    /// no effect is called missing while the rms is below this many noise floors (the
-    /// residual of an exact model on noise-free data: machine precision)
+    /// no effect is called missing while the rms is below this many noise floors, or below
+    /// [`numerical_precision`] (the residual of an exact model on noise-free data)
     pub exact_ratio: f64,
     /// an effect must bring the rms below this fraction of the model's
     pub min_improvement: f64,
 }
+
+/// The smallest misfit this simulation can tell from zero: [`NUMERICAL_PRECISION`] times the
+/// extent (bounding-box diagonal) of the observed points. Its linear solves stop at a relative
+/// residual of 1e-8 (`cg_tolerance`), so an rms below this is the numerics' own.
+pub fn numerical_precision(observations: &Observations) -> f64 {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for (_, points) in observations.frames() {
+        for p in points {
+            for d in 0..3 {
+                lo[d] = lo[d].min(p.position[d]);
+                hi[d] = hi[d].max(p.position[d]);
+            }
+        }
+    }
+    let extent = (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
+    if extent.is_finite() {
+        NUMERICAL_PRECISION * extent
+    } else {
+        0.0
+    }
+}
+
+/// See [`numerical_precision`].
+pub const NUMERICAL_PRECISION: f64 = 1e-9;
 
 impl Default for DiagnoseParams {
     fn default() -> Self {
@@ -315,9 +339,15 @@ pub fn diagnose(
         }
     }
     progress("verdict", total, total);
-    let fails = rms > settings.fail_ratio * noise_floor;
+    // an rms at the simulation's numerical precision is an exact fit, whatever the floor: the
+    // residual estimate of noise-free data is that precision too (the noise-free bunny with
+    // nothing hidden: rms 8.9e-17, floor 7.2e-17, and an initial velocity "explained" it by
+    // Delta BIC -573)
+    let precision = numerical_precision(setup.observations);
+    let exact = rms <= settings.exact_ratio * noise_floor || rms <= precision;
+    let fails = !exact && rms > settings.fail_ratio * noise_floor;
     let missing = candidates.first().filter(|c| {
-        rms > settings.exact_ratio * noise_floor
+        !exact
             && c.delta_bic.is_some_and(|d| d < -settings.bic_threshold)
             && c.rms_after.is_some_and(|r| r < settings.min_improvement * rms)
     });
@@ -331,6 +361,14 @@ pub fn diagnose(
         None => Vec::new(),
     };
     let mut verdict = verdict(missing, rms, noise_floor, fails, &candidates);
+    if missing.is_none() && rms <= precision {
+        verdict = format!(
+            "nothing missing: rms {} is at the simulation's numerical precision ({}; noise floor {})",
+            effects::short(rms),
+            effects::short(precision),
+            effects::short(noise_floor)
+        );
+    }
     if !alternatives.is_empty() {
         verdict.push_str(&format!(
             "\n(or {}: the data do not tell {} from {}, Delta BIC within {})",
