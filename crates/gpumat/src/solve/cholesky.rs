@@ -9,6 +9,7 @@
 //! factorization runs in `f64` whatever the matrix's real type. It is a solver on its own, the
 //! fallback when CG fails, and a preconditioner ([`Preconditioner`]).
 
+use super::tree_solve::SupernodeTree;
 use super::Preconditioner;
 use crate::error::Error;
 use crate::matrix::Matrix;
@@ -16,7 +17,7 @@ use crate::scalar::{Real, Scalar};
 use crate::sparse::{BlockScalar, SparseMatrix, SparsityPattern};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Par, Side};
@@ -30,6 +31,9 @@ pub struct SparseCholesky<M: BlockScalar> {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     symbolic: Arc<SymbolicCholesky<usize>>,
+    /// the supernodal elimination tree the solves run over (`None`: a simplicial factor, or a
+    /// tree without the containment property, solved by faer)
+    tree: Option<Arc<SupernodeTree>>,
     factors: Vec<Vec<f64>>,
     _m: std::marker::PhantomData<M>,
 }
@@ -69,12 +73,17 @@ impl<M: BlockScalar> SparseCholesky<M> {
         };
         let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ordering, Default::default())
             .map_err(|e| Error::Factorization(format!("{e:?}")))?;
+        let tree = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(s) => SupernodeTree::new(s).map(Arc::new),
+            SymbolicCholeskyRaw::Simplicial(_) => None,
+        };
         Ok(Self {
             pattern: p.clone(),
             n,
             col_ptr,
             row_idx,
             symbolic: Arc::new(symbolic),
+            tree,
             factors: Vec::new(),
             _m: std::marker::PhantomData,
         })
@@ -167,9 +176,11 @@ impl<M: BlockScalar> SparseCholesky<M> {
         );
         let lanes = <M::Vector as Scalar>::LANES;
         let mut buf = vec![0.0f64; self.n];
-        // The triangular solves are memory-bound: sequential measured faster than rayon, and
-        // rayon no faster again on 2026-12-05 (the r = 20 cuboid's factor of 647 MB: 117-151
-        // ms per solve with `Par::rayon(0)` on 2 cores, 123-160 ms sequential).
+        let mut permuted = vec![0.0f64; self.n];
+        // faer's own solve (simplicial factors) runs on one thread: its `Par::rayon(0)` was no
+        // faster on the memory-bound triangular solves (measured 2026-12-05); the supernodal
+        // factors are solved over their elimination tree ([`SupernodeTree`]), subtrees in
+        // parallel
         let par = Par::Seq;
         let mut stack = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, par));
         for b in 0..x.batches() {
@@ -180,12 +191,35 @@ impl<M: BlockScalar> SparseCholesky<M> {
                 }
             }
             let f = &self.factors[if nf == 1 { 0 } else { b }];
-            LltRef::new(&self.symbolic, f).solve_in_place_with_conj(
-                Conj::No,
-                faer::MatMut::from_column_major_slice_mut(&mut buf, self.n, 1),
-                par,
-                MemStack::new(&mut stack),
-            );
+            match (&self.tree, self.symbolic.perm()) {
+                (Some(tree), perm) => {
+                    match perm {
+                        Some(p) => {
+                            let (fwd, _) = p.arrays();
+                            for (i, &j) in fwd.iter().enumerate() {
+                                permuted[i] = buf[j];
+                            }
+                        }
+                        None => permuted.copy_from_slice(&buf),
+                    }
+                    tree.solve(f, &mut permuted);
+                    match perm {
+                        Some(p) => {
+                            let (fwd, _) = p.arrays();
+                            for (i, &j) in fwd.iter().enumerate() {
+                                buf[j] = permuted[i];
+                            }
+                        }
+                        None => buf.copy_from_slice(&permuted),
+                    }
+                }
+                (None, _) => LltRef::new(&self.symbolic, f).solve_in_place_with_conj(
+                    Conj::No,
+                    faer::MatMut::from_column_major_slice_mut(&mut buf, self.n, 1),
+                    par,
+                    MemStack::new(&mut stack),
+                ),
+            }
             for (i, v) in xb.iter_mut().enumerate() {
                 *v = <M::Vector as Scalar>::from_lanes(|l| <M::Real as Real>::of(buf[i * lanes + l]));
             }
@@ -225,5 +259,86 @@ impl<M: BlockScalar> Preconditioner<M::Vector> for SparseCholesky<M> {
     fn apply(&self, r: &Matrix<M::Vector>, z: &mut Matrix<M::Vector>) {
         z.assign(r.ex());
         self.solve_in_place(z);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sparse::SparseMatrix;
+
+    /// The 7-point Laplacian (plus a shift) of a `g^3` grid and its node coordinates.
+    fn grid(g: usize) -> (SparseMatrix<f64>, Vec<[f64; 3]>) {
+        let idx = |i: usize, j: usize, k: usize| i + g * (j + g * k);
+        let mut trip = Vec::new();
+        let mut coords = Vec::new();
+        for k in 0..g {
+            for j in 0..g {
+                for i in 0..g {
+                    coords.push([i as f64, j as f64, k as f64]);
+                    let me = idx(i, j, k);
+                    trip.push((me, me, 6.1));
+                    for (d, n) in [
+                        (i, idx(i.wrapping_sub(1), j, k)),
+                        (j, idx(i, j.wrapping_sub(1), k)),
+                    ]
+                    .into_iter()
+                    .chain([(k, idx(i, j, k.wrapping_sub(1)))])
+                    {
+                        if d > 0 {
+                            trip.push((me, n, -1.0));
+                            trip.push((n, me, -1.0));
+                        }
+                    }
+                }
+            }
+        }
+        (SparseMatrix::from_triplets(g * g * g, g * g * g, &trip), coords)
+    }
+
+    /// The elimination-tree solve equals faer's supernodal solve of the same factor (to
+    /// rounding: another summation order), gives the same bits on 1 and 4 threads, and runs
+    /// subtrees in parallel on this matrix.
+    #[test]
+    fn tree_solve_matches_faer_and_is_thread_independent() {
+        let (a, coords) = grid(28);
+        let order = super::super::nested_dissection(a.pattern(), &coords);
+        let chol = SparseCholesky::with_ordering(&a, Some(&order)).unwrap();
+        let tree = chol.tree.as_ref().expect("a supernodal factor with its tree");
+        assert!(
+            tree.splits(),
+            "no parallel subtrees (factor {} entries)",
+            chol.factor_nnz()
+        );
+        let n = a.rows();
+        let b: Vec<f64> = (0..n)
+            .map(|i| ((i * 7919) % 1013) as f64 / 1013.0 - 0.5)
+            .collect();
+        // faer's own solve
+        let mut want = b.clone();
+        let mut stack = MemBuffer::new(chol.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+        LltRef::new(&chol.symbolic, &chol.factors[0]).solve_in_place_with_conj(
+            Conj::No,
+            faer::MatMut::from_column_major_slice_mut(&mut want, n, 1),
+            Par::Seq,
+            MemStack::new(&mut stack),
+        );
+        let solve = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut x = Matrix::<f64>::zeros(n, 1, 1);
+            x.batch_mut(0).copy_from_slice(&b);
+            pool.install(|| chol.solve_in_place(&mut x));
+            x.batch(0).to_vec()
+        };
+        let one = solve(1);
+        let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (i, (g, w)) in one.iter().zip(&want).enumerate() {
+            assert!((g - w).abs() <= 1e-12 * scale, "x[{i}] = {g}, faer {w}");
+        }
+        let four = solve(4);
+        assert!(one.iter().zip(&four).all(|(p, q)| p.to_bits() == q.to_bits()));
     }
 }

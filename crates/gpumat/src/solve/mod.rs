@@ -9,6 +9,7 @@ mod dense;
 mod ic0;
 mod ordering;
 mod precond;
+mod tree_solve;
 
 pub use cg::{cg, run_cg, CgError, CgInfo, CgOps, CgParams, CgState};
 pub use cholesky::SparseCholesky;
