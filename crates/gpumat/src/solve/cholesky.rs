@@ -341,4 +341,52 @@ mod tests {
         let four = solve(4);
         assert!(one.iter().zip(&four).all(|(p, q)| p.to_bits() == q.to_bits()));
     }
+
+    /// A banded matrix in its natural order: the elimination tree is one long chain of
+    /// supernodes, most with subtrees above the parallel threshold. The solve walks it in a
+    /// loop, not by recursion: it runs on a thread with a 128 KiB stack.
+    #[test]
+    fn tree_solve_walks_a_long_chain_without_deep_recursion() {
+        let (n, band) = (40_000usize, 128usize);
+        let mut trip = Vec::new();
+        for i in 0..n {
+            trip.push((i, i, 2.0 * band as f64 + 1.0));
+            for d in 1..=band.min(i) {
+                trip.push((i, i - d, -1.0));
+                trip.push((i - d, i, -1.0));
+            }
+        }
+        let a = SparseMatrix::from_triplets(n, n, &trip);
+        let natural: Vec<usize> = (0..n).collect();
+        let chol = SparseCholesky::with_ordering(&a, Some(&natural)).unwrap();
+        let b: Vec<f64> = (0..n).map(|i| (i % 17) as f64 - 8.0).collect();
+        let x = std::thread::Builder::new()
+            .stack_size(128 << 10)
+            .spawn(move || {
+                assert!(chol.tree.is_some(), "a supernodal factor");
+                let mut x = Matrix::<f64>::zeros(n, 1, 1);
+                x.batch_mut(0).copy_from_slice(&b);
+                chol.solve_in_place(&mut x);
+                x.batch(0).to_vec()
+            })
+            .unwrap()
+            .join()
+            .unwrap();
+        // the residual of A x = b
+        let b: Vec<f64> = (0..n).map(|i| (i % 17) as f64 - 8.0).collect();
+        let mut worst = 0.0f64;
+        for i in 0..n {
+            let mut ax = (2.0 * band as f64 + 1.0) * x[i];
+            for d in 1..=band {
+                if i >= d {
+                    ax -= x[i - d];
+                }
+                if i + d < n {
+                    ax -= x[i + d];
+                }
+            }
+            worst = worst.max((ax - b[i]).abs());
+        }
+        assert!(worst < 1e-9, "residual {worst}");
+    }
 }

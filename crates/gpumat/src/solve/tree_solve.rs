@@ -156,42 +156,41 @@ impl SupernodeTree {
         nodes.iter().filter(|&&c| self.work[c] >= PAR_WORK).count() >= 2
     }
 
-    /// The forward solve of the subtree of `s`; returns `u_s` (module docs).
+    /// The forward solve of the subtree of `s`; returns `u_s` (module docs). One loop over the
+    /// subtree's supernodes in ascending order (children before parents); the subtrees below a
+    /// supernode whose children run in parallel are solved by calls of their own, so the
+    /// recursion is only as deep as the parallel splits on a path (each takes >= [`PAR_WORK`]
+    /// entries), never as deep as the tree (a long chain of supernodes).
     fn forward(&self, values: &[f64], x: &Shared, s: usize) -> Vec<f64> {
-        let kids = &self.children[s];
-        let updates: Vec<Vec<f64>> = if self.work[s] < PAR_WORK {
-            return self.forward_sequential(values, x, s);
-        } else if self.parallel(kids) {
-            kids.par_iter().map(|&c| self.forward(values, x, c)).collect()
-        } else {
-            kids.iter().map(|&c| self.forward(values, x, c)).collect()
-        };
-        self.forward_node(values, x, s, kids.iter().copied().zip(updates))
-    }
-
-    /// [`SupernodeTree::forward`] on one thread, without recursion: the subtree's supernodes in
-    /// ascending order (children before parents), each child's update kept until its parent.
-    fn forward_sequential(&self, values: &[f64], x: &Shared, s: usize) -> Vec<f64> {
         let mut pending: std::collections::HashMap<usize, Vec<f64>> = Default::default();
-        for t in self.subtree(s) {
-            let kids = self.children[t].iter().map(|&c| {
+        for t in self.local(s) {
+            let kids = &self.children[t];
+            if self.parallel(kids) {
+                let updates: Vec<Vec<f64>> = kids.par_iter().map(|&c| self.forward(values, x, c)).collect();
+                pending.extend(kids.iter().copied().zip(updates));
+            }
+            let mine = kids.iter().map(|&c| {
                 (
                     c,
                     pending.remove(&c).expect("a child is solved before its parent"),
                 )
             });
-            let u = self.forward_node(values, x, t, kids);
+            let u = self.forward_node(values, x, t, mine);
             pending.insert(t, u);
         }
         pending.remove(&s).expect("the subtree's root is solved last")
     }
 
-    /// The supernodes of the subtree of `s`, ascending.
-    fn subtree(&self, s: usize) -> Vec<usize> {
+    /// The supernodes of the subtree of `s` down to (not below) the supernodes whose children
+    /// run in parallel, ascending.
+    fn local(&self, s: usize) -> Vec<usize> {
         let mut out = vec![s];
         let mut k = 0;
         while k < out.len() {
-            out.extend_from_slice(&self.children[out[k]]);
+            let kids = &self.children[out[k]];
+            if !self.parallel(kids) {
+                out.extend_from_slice(kids);
+            }
             k += 1;
         }
         out.sort_unstable();
@@ -240,22 +239,15 @@ impl SupernodeTree {
         acc
     }
 
-    /// The backward solve of the subtree of `s`.
+    /// The backward solve of the subtree of `s`: [`SupernodeTree::local`] in descending order
+    /// (parents before children), the children of a parallel split in calls of their own.
     fn backward(&self, values: &[f64], x: &Shared, s: usize) {
-        if self.work[s] < PAR_WORK {
-            let mut nodes = self.subtree(s);
-            nodes.reverse();
-            for t in nodes {
-                self.backward_node(values, x, t);
+        for t in self.local(s).into_iter().rev() {
+            self.backward_node(values, x, t);
+            let kids = &self.children[t];
+            if self.parallel(kids) {
+                kids.par_iter().for_each(|&c| self.backward(values, x, c));
             }
-            return;
-        }
-        self.backward_node(values, x, s);
-        let kids = &self.children[s];
-        if self.parallel(kids) {
-            kids.par_iter().for_each(|&c| self.backward(values, x, c));
-        } else {
-            kids.iter().for_each(|&c| self.backward(values, x, c));
         }
     }
 
