@@ -360,15 +360,7 @@ pub fn diagnose(
             .collect(),
         None => Vec::new(),
     };
-    let mut verdict = verdict(missing, rms, noise_floor, fails, &candidates);
-    if missing.is_none() && rms <= precision {
-        verdict = format!(
-            "nothing missing: rms {} is at the simulation's numerical precision ({}; noise floor {})",
-            effects::short(rms),
-            effects::short(precision),
-            effects::short(noise_floor)
-        );
-    }
+    let mut verdict = verdict(missing, rms, noise_floor, precision, fails, &candidates);
     if !alternatives.is_empty() {
         verdict.push_str(&format!(
             "\n(or {}: the data do not tell {} from {}, Delta BIC within {})",
@@ -455,10 +447,17 @@ fn verdict(
     missing: Option<&Candidate>,
     rms: f64,
     floor: f64,
+    precision: f64,
     fails: bool,
     candidates: &[Candidate],
 ) -> String {
     match missing {
+        None if rms <= precision => format!(
+            "nothing missing: rms {} is at the simulation's numerical precision ({}; noise floor {})",
+            effects::short(rms),
+            effects::short(precision),
+            effects::short(floor)
+        ),
         Some(c) => format!(
             "missing: {}. rms {} -> {} after adding it (noise floor {}). Add `{}` to [model].effects{}",
             c.effect,

@@ -191,29 +191,20 @@ impl<M: BlockScalar> SparseCholesky<M> {
                 }
             }
             let f = &self.factors[if nf == 1 { 0 } else { b }];
-            match (&self.tree, self.symbolic.perm()) {
-                (Some(tree), perm) => {
-                    match perm {
-                        Some(p) => {
-                            let (fwd, _) = p.arrays();
-                            for (i, &j) in fwd.iter().enumerate() {
-                                permuted[i] = buf[j];
-                            }
-                        }
-                        None => permuted.copy_from_slice(&buf),
+            match &self.tree {
+                Some(tree) => {
+                    // the factor's ordering: row i of the permuted system is row fwd[i]
+                    let fwd = self.symbolic.perm().map(|p| p.arrays().0);
+                    let at = |i: usize| fwd.map_or(i, |f| f[i]);
+                    for (i, v) in permuted.iter_mut().enumerate() {
+                        *v = buf[at(i)];
                     }
                     tree.solve(f, &mut permuted);
-                    match perm {
-                        Some(p) => {
-                            let (fwd, _) = p.arrays();
-                            for (i, &j) in fwd.iter().enumerate() {
-                                buf[j] = permuted[i];
-                            }
-                        }
-                        None => buf.copy_from_slice(&permuted),
+                    for (i, &v) in permuted.iter().enumerate() {
+                        buf[at(i)] = v;
                     }
                 }
-                (None, _) => LltRef::new(&self.symbolic, f).solve_in_place_with_conj(
+                None => LltRef::new(&self.symbolic, f).solve_in_place_with_conj(
                     Conj::No,
                     faer::MatMut::from_column_major_slice_mut(&mut buf, self.n, 1),
                     par,
