@@ -540,6 +540,7 @@ class Contact:
         # candidate scalar dofs and the y-components among the free dofs
         sdofs = np.unique(E.indices)
         self.sdofs = sdofs
+        self.E = E.tocsr()                                   # qp values from all scalar dofs
         self.B = E[:, sdofs].tocsr()                         # qp values from candidate dofs
         pos = -np.ones(body.N, int)
         pos[body.free] = np.arange(len(body.free))

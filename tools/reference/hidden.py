@@ -337,9 +337,11 @@ def outward_normals(T):
     return n * np.sign(np.einsum("ij,ij->i", n, out))[:, None]
 
 
-def sample_points(body, surf, U, rng, partial):
+def sample_points(body, surf, U, rng, partial, hide=None):
+    """POINTS points uniformly by deformed area on the surface but the facets `hide` (default:
+    the clamped face), on the side facing VIEW only with `partial`."""
     T = surf.triangles(U)
-    A = g.tri_areas(T) * ~body.clamped_facet[surf.tf]
+    A = g.tri_areas(T) * ~(body.clamped_facet if hide is None else hide)[surf.tf]
     if partial:
         A = A * (outward_normals(T) @ (VIEW / np.linalg.norm(VIEW)) > 0.1)
     k = rng.choice(len(A), size=POINTS, p=A / A.sum())
@@ -556,6 +558,10 @@ def main():
     with open(os.path.join(args.out, GROUND["scene"]), "w") as fh:
         fh.write(text)
     cases += [GROUND, GROUND_CONTROL]
+    # sliding.py's friction cases, kept
+    if os.path.exists(index_path):
+        cases += [c for c in json.load(open(index_path))["cases"]
+                  if c["case"].split("/")[0] in ("friction", "complete-friction")]
     index = dict(
         generator="tools/reference/hidden.py (scikit-fem; physics notes in its docstring and "
                   "tools/reference/README.md)",

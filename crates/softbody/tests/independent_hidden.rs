@@ -163,3 +163,16 @@ fn control_with_corotation_in_the_scene_has_nothing_missing() {
 fn control_seen_by_the_depth_camera_at_the_smallest_noise() {
     check("none/camera-0.0025");
 }
+
+/// Ground friction (`tools/reference/sliding.py`: a soft box lands while it moves sideways and
+/// slides to a stop; viscous friction with the reference's own contact and Newton solver).
+#[test]
+fn hidden_friction() {
+    let d = check("friction/samples-0.01");
+    assert_eq!(d["missing_effect"], "friction", "verdict: {}", d["verdict"]);
+}
+
+#[test]
+fn control_with_friction_in_the_scene_has_nothing_missing() {
+    check("complete-friction/samples-0.01");
+}
