@@ -25,9 +25,10 @@
 //! Checked: every source compiles with NVRTC (`tests/nvrtc_compile.rs`), and runs correctly on
 //! a host emulation of CUDA against the CPU backend (`tests/emulated.rs`,
 //! `tests/emulated_expr.rs`). Device memory, launches through the driver and the device CG loop
-//! are [`crate::device`]'s (`CudaDevice` with feature `cuda`; not yet run on a GPU). Not built
-//! yet: the cutfem backend (the parameters of each catalogue kernel are in `build.rs`, their
-//! layouts in `kernels/solver.cuh`).
+//! are [`crate::device`]'s (`CudaDevice` with feature `cuda`; not yet run on a GPU); cutfem's
+//! step solve runs on them with `[numerics] backend = "cuda"` (`cutfem::fem::device_solve`).
+//! The parameters of each catalogue kernel are in `build.rs`, their layouts in
+//! `kernels/solver.cuh`.
 
 #[cfg(feature = "cuda")]
 pub mod cache;
