@@ -429,16 +429,20 @@ def scene_toml(name, effects, hidden, variant=None, sections=(), fitted=None):
         lines += list(sections) + [""]
     lines += ["# holds the clamped end face", "[[dirichlet]]",
               f"min = {fmt(np.round(lo, 6))}", f"max = {fmt(np.round(hi, 6))}", "",
-              "[time]", f"dt = {BASE['dt']!r}", f"steps = {BASE['steps']}", "theta = 0.5", "",
-              "[model]", "effects = [" + ", ".join(f'"{e}"' for e in effects) + "]", ""]
+              "[time]", f"dt = {BASE['dt']!r}", f"steps = {BASE['steps']}", "theta = 0.5", ""]
+    return "\n".join(lines + box_scene_tail(effects, fitted))
+
+
+def box_scene_tail(effects, fitted):
+    """A box scene's [model], [fit] (when `fitted`) and [numerics] lines."""
+    lines = ["[model]", "effects = [" + ", ".join(f'"{e}"' for e in effects) + "]", ""]
     if fitted:
         lines += ["[fit]", "parameters = [" + ", ".join(f'"{p}"' for p in fitted) + "]", ""]
     # what a user of a box would set (docs/simulation.md, "Dual contouring"): marching cubes
     # bevels the bar's edges by up to a surface cell (the control seen by the depth camera at
     # sigma 0.0025 misfit by 1.75 sigma with it, 1.52 sigma without)
-    lines += ["# a box: its sharp edges kept in the simulated surface", "[numerics]",
-              'surface_method = "dual_contouring"', ""]
-    return "\n".join(lines)
+    return lines + ["# a box: its sharp edges kept in the simulated surface", "[numerics]",
+                    'surface_method = "dual_contouring"', ""]
 
 
 def write_csv(path, frames, pts, cams=None):

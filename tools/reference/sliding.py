@@ -217,13 +217,8 @@ def scene_toml(name, effects, sections=(), fitted=None):
         lines += list(sections) + [""]
     lines += ["[time]", f"dt = {c['dt']!r}", f"steps = {c['steps']}", "theta = 0.5",
               "# our integrator steps per frame (the landing is resolved in time)",
-              f"substeps = {c['scene_substeps']}", "",
-              "[model]", "effects = [" + ", ".join(f'"{e}"' for e in effects) + "]", ""]
-    if fitted:
-        lines += ["[fit]", "parameters = [" + ", ".join(f'"{p}"' for p in fitted) + "]", ""]
-    lines += ["# a box: its sharp edges kept in the simulated surface", "[numerics]",
-              'surface_method = "dual_contouring"', ""]
-    return "\n".join(lines)
+              f"substeps = {c['scene_substeps']}", ""]
+    return "\n".join(lines + hd.box_scene_tail(effects, fitted))
 
 
 def main():
