@@ -109,6 +109,8 @@ VIEW = np.array([0.2, 0.6, 1.0])  # the partial view looks from this direction
 CAMERA = dict(eye=[0.525, 1.55, 1.9], target=[0.525, 0.9, 0.0], up=[0.0, 1.0, 0.0],
               fov_y=0.62, width=40, height=30)
 SEED = 20261204
+# the cases sliding.py writes into cases.json (kept when this script rewrites it)
+FRICTION_CASES = ("friction", "complete-friction")
 
 # The landing sphere of generate.py's `ground` case, its scene without the ground among the
 # effects (the [ground] section's contact law kept: the diagnosis must find the plane)
@@ -565,7 +567,7 @@ def main():
     # sliding.py's friction cases, kept
     if os.path.exists(index_path):
         cases += [c for c in json.load(open(index_path))["cases"]
-                  if c["case"].split("/")[0] in ("friction", "complete-friction")]
+                  if c["case"].split("/")[0] in FRICTION_CASES]
     index = dict(
         generator="tools/reference/hidden.py (scikit-fem; physics notes in its docstring and "
                   "tools/reference/README.md)",

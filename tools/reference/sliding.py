@@ -180,6 +180,7 @@ def simulate(body, mu, substeps, log=print):
         f"momentum balance {worst_balance:.1e}")
     assert worst_balance < 1e-9, worst_balance
     return np.array(frames), dict(newton=newton, momentum_balance=worst_balance, h=h,
+                                  cap_facets=contact.cap_facets,
                                   normal_force=np.array(normal_force), mean_vx=np.array(mean_vx))
 
 
@@ -244,7 +245,7 @@ def main():
     log(f"    friction's effect: rms {effect:.4f} over the surface nodes; "
         f"slide {frames[-1][:, 0].mean():.3f} with, {frictionless[-1][:, 0].mean():.3f} without")
     bottom = np.zeros(len(body.bfacets), bool)
-    bottom[contact_facets(body)] = True
+    bottom[run["cap_facets"]] = True
     d = os.path.join(args.out, "friction")
     os.makedirs(d, exist_ok=True)
     fine_surf = g.Surface(body, 8)
@@ -278,7 +279,7 @@ def main():
                             ["[friction]", f"coefficient = {mu!r}"], ["young", "poisson", "friction"]))
     index_path = os.path.join(args.out, "cases.json")
     index = json.load(open(index_path))
-    index["cases"] = [x for x in index["cases"] if x["case"].split("/")[0] not in FRICTION_CASES]
+    index["cases"] = [x for x in index["cases"] if x["case"].split("/")[0] not in hd.FRICTION_CASES]
     index["cases"] += cases
     index["variants"]["friction"] = dict(
         variant="friction", physics=dict((k, c[k]) for k in (
@@ -292,14 +293,6 @@ def main():
         fh.write(g.compact_json(index) + "\n")
     log(f"wrote {len(cases)} friction cases in {time.time() - t0:.0f}s")
     return 0
-
-
-FRICTION_CASES = ("friction", "complete-friction")
-
-
-def contact_facets(body):
-    """The bottom face's boundary facets (those of generate.py's contact cap)."""
-    return g.Contact(body, CASE["ground"]).cap_facets
 
 
 if __name__ == "__main__":
