@@ -73,7 +73,7 @@ CASE = dict(
     damping_mass=0.2, damping_stiffness=0.002,
     clamp=None,
     ground=dict(normal=[0.0, 1.0, 0.0], height=0.0, penalty=1.0e5, cap=0.005,
-                scene_stiffness=1.0e4, scene_softness=1000.0),
+                scene_scheme="penalty", scene_stiffness=1.0e5, scene_softness=1.0e6),
     velocity=[1.0, 0.0, 0.0], friction=0.4,
     dt=0.01, steps=50, substeps=10,
     mesh=dict(reference=dict(cells=[8, 3, 6])),
@@ -209,9 +209,11 @@ def scene_toml(name, effects, sections=(), fitted=None):
              f"density = {c['density']!r}", "",
              "[damping]", f"mass = {c['damping_mass']!r}", f"stiffness = {c['damping_stiffness']!r}", "",
              "[gravity]", f"acceleration = {hd.fmt(g.GRAVITY)}", "",
-             f"# the reference's frictionless part is a penalty p = k * penetration, k = {gr['penalty']:g};",
-             "# these are our model's springs",
+             f"# the reference's frictionless part is a penalty p = k * penetration, k = {gr['penalty']:g}",
+             "# per unit area: the same law in our penalty scheme (smoothed over the first",
+             "# 1 / softness of depth)",
              "[ground]", f"normal = {hd.fmt(gr['normal'])}", f"height = {gr['height']!r}",
+             f"scheme = \"{gr['scene_scheme']}\"",
              f"stiffness = {gr['scene_stiffness']!r}", f"softness = {gr['scene_softness']!r}", "",
              "[initial]", f"velocity = {hd.fmt(c['velocity'])}", ""]
     if sections:
