@@ -111,3 +111,100 @@ fn the_penalty_scheme_from_a_scene_lands_a_sphere() {
         .to_string();
     assert!(err.contains("ground.scheme"), "{err}");
 }
+
+/// Where the ground pushes (`GroundPush`), on a box whose flat bottom face is placed by a rigid
+/// translation: the penalty law pushes only the touching bottom, with `k A (p - delta / 2)` at
+/// depth `p` (`A` the area its crossings stand for), at distance `-p`; the softmin law (per crossing) pushes a
+/// box held `d0` above the plane with `N k ln(1 + e^(-alpha d0)) / alpha` over its `N` bottom
+/// crossings, all of it above the plane, and `hovers` says so for a body of that weight.
+#[test]
+fn the_ground_push_says_where_the_contact_law_pushes() {
+    use cutfem::fem::collision::{ContactScheme, Ground, GroundPush};
+    use gpumat::{Matrix, Vec3};
+    let (h, half) = (0.02, [0.3, 0.05, 0.2]);
+    // off the grid's nodes by fractions of a cell, so that no face lies on a node layer
+    let c = [0.0031, 0.0003, -0.0047];
+    let sdf = sample([-0.35; 3], [0.35; 3], h, 2, |p| {
+        let q: [f64; 3] = std::array::from_fn(|d| (p[d] - c[d]).abs() - half[d]);
+        let outside = q.iter().map(|x| x.max(0.0).powi(2)).sum::<f64>().sqrt();
+        outside + q[0].max(q[1]).max(q[2]).min(0.0)
+    });
+    let grid = Grid::new(sdf).unwrap();
+    let cs = crossings(&grid);
+    let bottom = c[1] - half[1];
+    // a rigid translation putting the bottom face at height `y`
+    let at = |y: f64| {
+        Matrix::from_vec(
+            grid.dofs(),
+            1,
+            1,
+            vec![Vec3::new(0.0, y - bottom, 0.0); grid.dofs()],
+        )
+    };
+    let on_bottom: Vec<_> = cs
+        .iter()
+        .filter(|x| {
+            let p = grid.positions[x.a as usize] * (1.0 - x.t) + grid.positions[x.b as usize] * x.t;
+            (p.y - bottom).abs() < 1e-9
+        })
+        .collect();
+    let bottom_crossings = on_bottom.len();
+    // the area the bottom's crossings stand for (the face's 0.24 up to the rim's cells, whose
+    // trilinear normals lean: the_crossings_areas_sum_to_the_surface_area tests that estimate)
+    let area: f64 = on_bottom.iter().map(|x| x.area).sum();
+
+    let (k, alpha) = (1.0e5, 1.0e6);
+    let penalty = Ground {
+        normal: Vec3::new(0.0, 1.0, 0.0),
+        height: 0.0,
+        stiffness: k,
+        softness: alpha,
+        scheme: ContactScheme::Penalty,
+    };
+    let p = 1.0e-3;
+    let mut push = GroundPush::default();
+    push.add_state(&grid, &cs, &penalty, &at(-p));
+    let expect = k * area * (p - 0.5 / alpha);
+    eprintln!(
+        "penalty at depth {p}: {bottom_crossings} bottom crossings standing for {area:.5} (face 0.24), force {:.6} (k A (p - delta/2) = {expect:.6}), mean distance {:?}",
+        push.force,
+        push.mean_distance()
+    );
+    assert!(
+        (push.force / expect - 1.0).abs() < 1e-12,
+        "{} vs {expect}",
+        push.force
+    );
+    assert!((push.mean_distance().unwrap() + p).abs() < 1e-9 * p.max(1.0));
+    assert_eq!(push.share_above(), 0.0);
+    assert!(!push.hovers(push.force, h));
+
+    let (k, alpha, d0) = (1.0e4, 1000.0, 0.005);
+    let softmin = Ground {
+        stiffness: k,
+        softness: alpha,
+        scheme: ContactScheme::Implicit,
+        ..penalty
+    };
+    let mut push = GroundPush::default();
+    push.add_state(&grid, &cs, &softmin, &at(d0));
+    let expect = bottom_crossings as f64 * k * (-alpha * d0).exp().ln_1p() / alpha;
+    eprintln!(
+        "softmin {d0} above: {bottom_crossings} bottom crossings, force {:.6} (N k ln(1 + e^(-alpha d0)) / alpha = {expect:.6}), mean distance {:?}",
+        push.force,
+        push.mean_distance()
+    );
+    // the other crossings (the rim's, whose trilinear SDF puts them off the face, and the side
+    // faces', a node layer higher) add a little: measured 0.19%
+    assert!(
+        push.force >= expect && push.force < 1.01 * expect,
+        "{} vs {expect}",
+        push.force
+    );
+    let mean = push.mean_distance().unwrap();
+    assert!(mean >= d0 - 1e-12 && mean < d0 + 1e-3, "{mean}");
+    assert_eq!(push.share_above(), 1.0);
+    // a body whose weight that push carries hovers; one ten times heavier is not held by it
+    assert!(push.hovers(push.force, h));
+    assert!(!push.hovers(20.0 * push.force, h));
+}

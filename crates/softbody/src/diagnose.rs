@@ -15,6 +15,7 @@ use adjoint::fit::CostKind;
 use adjoint::observations::Observations;
 use adjoint::observe::DepthCamera;
 use adjoint::params::ParamSet;
+use cutfem::fem::collision::GroundPush;
 use cutfem::scene::Scene;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -221,6 +222,7 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: &Path, seconds
         "noise_floor_method": d.noise_floor_method,
         "noise_floor_std_error": d.noise_floor_std_error,
         "on_bounds": d.on_bounds.iter().map(|(p, v, side)| json!({"parameter": p, "value": v, "bound": side})).collect::<Vec<_>>(),
+        "ground_push": d.ground_push.as_ref().map(|(p, hovers)| ground_push_json(p, *hovers)),
         "per_frame": d.per_frame.iter().map(|(f, r, n)| json!({"frame": f, "rms": r, "points": n})).collect::<Vec<_>>(),
         "regions": d.regions,
         "candidates": candidates,
@@ -237,6 +239,29 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: &Path, seconds
         "files": pictures,
         "seconds": seconds,
     })
+}
+
+/// The JSON of where the ground pushed over a run (`GroundPush`): the force-weighted mean
+/// distance of the push from the plane, the share of it on points above the plane, and whether
+/// the contact law holds the body off the plane.
+pub fn ground_push_json(push: &GroundPush, hovers: bool) -> Value {
+    json!({
+        "mean_distance": push.mean_distance(),
+        "share_above_plane": push.share_above(),
+        "hovers": hovers,
+    })
+}
+
+/// The warning for a ground that holds the body off the plane.
+pub fn hover_note(push: &GroundPush) -> String {
+    format!(
+        "the ground's contact law holds the body off the plane: its push acted {:.3e} above the \
+         plane on average ({:.0}% of it on points not touching), the softmin law's push before \
+         contact; `[ground] scheme = \"penalty\"` (stiffness per unit area) has none \
+         (docs/simulation.md)",
+        push.mean_distance().unwrap_or(0.0),
+        100.0 * push.share_above()
+    )
 }
 
 /// `[{"stage", "seconds"}]` from the stages' start times, the last one ending at `end`.
@@ -352,6 +377,9 @@ pub fn print_text(d: &Diagnosis) {
             "its fit ended with {p} = {v:.4} on the {side} bound of the plausible range: a wrong \
              model often pushes a parameter there"
         );
+    }
+    if let Some((push, true)) = &d.ground_push {
+        crate::note!("{}", hover_note(push));
     }
     let worst = d.per_frame.iter().find(|f| f.0 == d.worst_frame);
     if let Some((f, r, _)) = worst {

@@ -156,8 +156,11 @@ pub fn run(a: Args) -> Result<(), String> {
     }
 
     let pb = progress::bar(steps as u64, "simulate", a.json);
+    let mut push = cutfem::fem::collision::GroundPush::default();
+    sim.add_ground_push(&mut push);
     for f in 1..=steps {
         run.frame(&mut sim, f).map_err(|e| e.to_string())?;
+        sim.add_ground_push(&mut push);
         let mesh = sim.grid.deformed(&surface, &sim.u);
         write_frame(f, &mesh)?;
         if picks.contains(&f) {
@@ -222,6 +225,13 @@ pub fn run(a: Args) -> Result<(), String> {
     });
     if let Some(r) = refine {
         summary["refine_check"] = r;
+    }
+    let hovers = sim.hovers(&push);
+    if sim.model.ground.is_some() {
+        summary["ground_push"] = crate::diagnose::ground_push_json(&push, hovers);
+    }
+    if hovers && !a.json {
+        crate::note!("{}", crate::diagnose::hover_note(&push));
     }
     dir.finish(&mut summary, "summary.json")?;
     if a.json {

@@ -192,3 +192,48 @@ fn simulate_refine_check_reports_the_discretisation_error() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(stderr.contains("discretisation:"), "{stderr}");
 }
+
+/// A light box on the default softmin ground (per-crossing springs, softness 100) rests where
+/// its bottom crossings' push before contact sums to its weight, about 0.1 above the plane:
+/// `simulate` reports where the ground pushed (`ground_push`) and warns that the law holds the
+/// body off the plane; on the penalty law (per unit area, no push before contact) the same box
+/// sinks into the plane by its small depth and nothing is said.
+#[test]
+fn simulate_warns_when_the_ground_holds_the_body_off_the_plane() {
+    let dir = tmp("cli", "hover");
+    let scene = |center_y: f64, ground: &str| {
+        format!(
+            "[body]\nresolution = 20\nshape = {{ kind = \"box\", center = [0.0, {center_y}, 0.0], size = [0.4, 0.2, 0.4] }}\n\
+             [material]\nyoung = 1000.0\npoisson = 0.3\ndensity = 1.0\n[damping]\nmass = 1.0\nstiffness = 0.01\n\
+             [gravity]\nacceleration = [0.0, -10.0, 0.0]\n[ground]\n{ground}\n\
+             [time]\ndt = 0.01\nsteps = 10\ntheta = 0.5\n\
+             [model]\neffects = [\"gravity\", \"damping\", \"ground\"]\n"
+        )
+    };
+    let softmin = scene(0.2, "stiffness = 1.0e4\nsoftness = 100.0");
+    let (o, _) = simulate(&dir, "softmin.toml", &softmin, &["--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let push = &v["ground_push"];
+    eprintln!("softmin: {push}");
+    assert_eq!(push["hovers"], true, "{push}");
+    assert_eq!(push["share_above_plane"], 1.0);
+    assert!(push["mean_distance"].as_f64().unwrap() > 0.05, "{push}");
+    let (o, _) = simulate(&dir, "softmin.toml", &softmin, &[]);
+    let text = String::from_utf8_lossy(&o.stderr).to_string() + &String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("holds the body off the plane"), "{text}");
+
+    let penalty = scene(0.1, "scheme = \"penalty\"\nstiffness = 1.0e5\nsoftness = 1.0e6");
+    let (o, _) = simulate(&dir, "penalty.toml", &penalty, &["--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let push = &v["ground_push"];
+    eprintln!("penalty: {push}");
+    assert_eq!(push["hovers"], false, "{push}");
+    assert_eq!(push["share_above_plane"], 0.0);
+    let d = push["mean_distance"].as_f64().unwrap();
+    assert!(d < 0.0 && d > -1e-3, "{push}");
+    let (o, _) = simulate(&dir, "penalty.toml", &penalty, &[]);
+    let text = String::from_utf8_lossy(&o.stderr).to_string() + &String::from_utf8_lossy(&o.stdout);
+    assert!(!text.contains("off the plane"), "{text}");
+}

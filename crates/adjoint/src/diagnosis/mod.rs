@@ -40,6 +40,7 @@ use crate::fit::observed_frames;
 use crate::observations::Observations;
 use crate::params::ParamSet;
 use crate::Error;
+use cutfem::fem::collision::GroundPush;
 use cutfem::fem::Model;
 use cutfem::scene::Scene;
 use effects::{catalogue, write_back_all, DataContext, Effect};
@@ -160,6 +161,10 @@ pub struct Diagnosis {
     /// (`(parameter, value, "lower" | "upper")`): a wrong model's fit often pushes one there (the
     /// Poisson ratio to 0.01 or 0.49), itself a clue that the model lacks something
     pub on_bounds: Vec<(String, f64, &'static str)>,
+    /// where the ground pushed the fitted model's body over its frames (`None`: no ground) and
+    /// whether that holds it off the plane (`GroundPush::hovers`: the softmin law's push before
+    /// contact carries the body, a modelling error no parameter of the fit removes)
+    pub ground_push: Option<(GroundPush, bool)>,
     /// `(frame, rms, points)`
     pub per_frame: Vec<(usize, f64, usize)>,
     /// `(camera, rms, points)`
@@ -294,8 +299,14 @@ pub fn diagnose(
         setup.robust,
     )?
     .with_reach(reach);
-    let records =
-        residuals::point_residuals(&mut problem.sim, model.clone(), steps, &cost, setup.observations)?;
+    let (records, push) = residuals::point_residuals_and_push(
+        &mut problem.sim,
+        model.clone(),
+        steps,
+        &cost,
+        setup.observations,
+    )?;
+    let ground_push = model.ground.is_some().then(|| (push, problem.sim.hovers(&push)));
     let h = problem.sim.grid.h();
     let (mut noise_floor, mut noise_floor_method, mut noise_floor_std_error) =
         floor::stated_floor(setup.observations, setup.cameras, setup.eyes, 2.0 * h, &records);
@@ -379,6 +390,7 @@ pub fn diagnose(
         noise_floor_method,
         noise_floor_std_error,
         on_bounds,
+        ground_push,
         per_frame,
         per_camera,
         regions,

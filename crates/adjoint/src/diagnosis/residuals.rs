@@ -28,6 +28,7 @@ use crate::cost_mesh::SurfaceCost;
 use crate::observations::Observations;
 use crate::observe::DepthCamera;
 use crate::Error;
+use cutfem::fem::collision::GroundPush;
 use cutfem::fem::{Model, Simulation};
 use gpumat::{Matrix, Vec3};
 use std::collections::HashMap;
@@ -59,17 +60,31 @@ pub fn point_residuals(
     cost: &SurfaceCost,
     observations: &Observations,
 ) -> Result<Vec<PointResidual>, Error> {
+    Ok(point_residuals_and_push(sim, model, steps, cost, observations)?.0)
+}
+
+/// [`point_residuals`], and the ground's push gathered at every frame (`GroundPush`: where the
+/// contact law pushed the body, to tell a body held off the plane).
+pub fn point_residuals_and_push(
+    sim: &mut Simulation,
+    model: Model,
+    steps: usize,
+    cost: &SurfaceCost,
+    observations: &Observations,
+) -> Result<(Vec<PointResidual>, GroundPush), Error> {
     sim.reset(model)?;
     let zero: Matrix<Vec3<f64>> = Matrix::zeros(sim.grid.dofs(), 1, 1);
     let reference = cost.vertices(&zero);
     let mut out = Vec::new();
+    let mut push = GroundPush::default();
     for t in 0..=steps {
         if t > 0 {
             sim.step().map_err(|e| Error::step(format!("step {t}"), e))?;
         }
+        sim.add_ground_push(&mut push);
         frame_residuals(&sim.u, t, cost, observations, &reference, &mut out);
     }
-    Ok(out)
+    Ok((out, push))
 }
 
 /// The residuals of frame `t`'s observed points at displacement `u` (appended to `out`);

@@ -396,3 +396,67 @@ pub fn penalty_residual(
     }
     worst
 }
+
+/// How the ground pushed over a run (sampled at chosen states, e.g. every frame): the sums over
+/// states and crossings of the normal force `f_c = -spring S(d_c) > 0`, of its part on
+/// crossings above the plane (`d_c > 0`: the softmin law's push before contact; the penalty
+/// law has none) and of `f_c d_c`. Their ratio, the force-weighted distance of the push, is
+/// about `-penetration` for a contact that acts on touching points and `+` the gap where the
+/// softened law holds a body off the plane (a resting body sits where its bottom crossings'
+/// `k ln(1 + e^(-alpha d)) / alpha` sum to its weight: centimetres for `alpha = 100`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GroundPush {
+    /// sum of the normal forces
+    pub force: f64,
+    /// the part of `force` on crossings above the plane
+    pub above: f64,
+    /// sum of force times distance
+    pub moment: f64,
+    /// states added
+    pub states: usize,
+}
+
+impl GroundPush {
+    /// Adds the push of the state with displacement `u`.
+    pub fn add_state(&mut self, grid: &Grid, crossings: &[Crossing], ground: &Ground, u: &Field) {
+        let us = u.as_slice();
+        for c in crossings {
+            let (a, b, t) = (c.a as usize, c.b as usize, c.t);
+            let x = (grid.positions[a] + us[a]) * (1.0 - t) + (grid.positions[b] + us[b]) * t;
+            let d = ground.normal.dot(x) - ground.height;
+            let f = -ground.spring(c) * ground.law(d).0;
+            if f > 0.0 && f.is_finite() {
+                self.force += f;
+                self.moment += f * d;
+                if d > 0.0 {
+                    self.above += f;
+                }
+            }
+        }
+        self.states += 1;
+    }
+
+    /// The force-weighted mean distance of the push from the plane (`None`: no push).
+    pub fn mean_distance(&self) -> Option<f64> {
+        (self.force > 0.0).then(|| self.moment / self.force)
+    }
+
+    /// The share of the push on crossings above the plane (0 without push).
+    pub fn share_above(&self) -> f64 {
+        if self.force > 0.0 {
+            self.above / self.force
+        } else {
+            0.0
+        }
+    }
+
+    /// The ground holds the body off the plane: it carried at least a tenth of the weight
+    /// `weight` (mass times gravity) on average over the states, and its push acted, weighted
+    /// by force, more than a quarter of the cell size `h` above the plane.
+    pub fn hovers(&self, weight: f64, h: f64) -> bool {
+        self.states > 0
+            && weight > 0.0
+            && self.force >= 0.1 * weight * self.states as f64
+            && self.mean_distance().is_some_and(|d| d > 0.25 * h)
+    }
+}

@@ -129,6 +129,7 @@ fn diagnosis() -> Diagnosis {
         noise_floor_method: "depth images",
         noise_floor_std_error: None,
         on_bounds: Vec::new(),
+        ground_push: None,
         per_frame,
         per_camera: vec![(0, rms, 1), (1, rms, 1), (2, rms, 1)],
         regions,

@@ -13,7 +13,7 @@
 use super::Simulation;
 use crate::error::Error;
 use crate::fem::collision::{
-    add_friction_forces, add_ground_forces, penalty_residual, ContactScheme, Crossing,
+    add_friction_forces, add_ground_forces, penalty_residual, ContactScheme, Crossing, GroundPush,
     PENALTY_MAX_ITERATIONS, PENALTY_TOLERANCE,
 };
 use crate::fem::step_info::StepInfo;
@@ -24,6 +24,21 @@ use gpumat::{Mat3, Matrix, Vec3};
 type CrossingTerms = Vec<(Crossing, f64)>;
 
 impl Simulation {
+    /// Adds the ground's push at the current state to `push` ([`GroundPush`]; nothing without
+    /// the ground).
+    pub fn add_ground_push(&self, push: &mut GroundPush) {
+        if let Some(ground) = &self.model.ground {
+            push.add_state(&self.grid, &self.crossings, ground, &self.u);
+        }
+    }
+
+    /// Whether `push`, gathered from this simulation's states, says the ground holds the body
+    /// off the plane ([`GroundPush::hovers`], with this body's weight and cell size).
+    pub fn hovers(&self, push: &GroundPush) -> bool {
+        let g = self.model.gravity;
+        push.hovers(self.total_mass() * g.dot(g).sqrt(), self.grid.h())
+    }
+
     /// Where the next [`Simulation::assemble_system`] linearizes a
     /// [`ContactScheme::Penalty`] contact: at `at` (the adjoint and tangent passes give the
     /// step's converged `u'`, so that `A` is the Jacobian of the converged step); `None`: at
