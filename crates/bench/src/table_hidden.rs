@@ -367,8 +367,8 @@ pub fn markdown(rows: &[Value]) -> String {
          verdict names it as an alternative the data cannot tell from the one called missing (Delta \
          BIC within 10); false alarm = share of the controls \
          (nothing hidden: the bar as it is, with a stiff inclusion too small to see, the complete \
-         models of five variants, the landing sphere with its ground) with an effect called \
-         missing.",
+         models of the variants with the effect in their scene, the landing sphere with its \
+         ground, the sliding box with its friction) with an effect called missing.",
         &curve_rows,
         &[
             col("effect", "effect", Fmt::Plain),
