@@ -1,12 +1,13 @@
 //! Linear solvers: batched preconditioned conjugate gradients (thesis sec. 3.4, Alg. 4.1), a
 //! direct sparse Cholesky solver (faer) usable alone, as a fallback, or as a preconditioner,
 //! with a geometric nested-dissection ordering, the block incomplete Cholesky IC(0)
-//! preconditioner, and small dense solves (Cholesky, inverse) for the optimizers.
+//! preconditioner, a geometric multigrid preconditioner (Galerkin V-cycle), and small dense solves (Cholesky, inverse) for the optimizers.
 
 mod cg;
 mod cholesky;
 mod dense;
 mod ic0;
+mod multigrid;
 mod ordering;
 mod precond;
 mod tree_solve;
@@ -15,6 +16,7 @@ pub use cg::{cg, run_cg, CgError, CgInfo, CgOps, CgParams, CgState};
 pub use cholesky::SparseCholesky;
 pub use dense::{invert_small, SmallCholesky};
 pub use ic0::{BlockIc0, Ic0Params};
+pub use multigrid::{lattice_prolongations, Multigrid, MultigridCycle, MultigridParams};
 pub use ordering::nested_dissection;
 pub use precond::{BlockJacobi, IdentityPreconditioner, Jacobi};
 
