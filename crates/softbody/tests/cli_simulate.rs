@@ -89,8 +89,8 @@ fn bad_parameters_are_one_line_errors() {
         "magic",
     );
     expect_error(
-        &tiny_bar(4, "[numerics]\npreconditioner = \"multigrid\"\n"),
-        "unknown variant `multigrid`, expected one of `block_jacobi`, `block_ic0`, `rest_cholesky`",
+        &tiny_bar(4, "[numerics]\npreconditioner = \"amg\"\n"),
+        "unknown variant `amg`, expected one of `block_jacobi`, `block_ic0`, `rest_cholesky`, `multigrid`",
     );
     expect_error(
         &tiny_bar(4, "[numerics]\nbackend = \"vulkan\"\n"),

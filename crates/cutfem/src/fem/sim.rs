@@ -113,7 +113,7 @@ impl Simulation {
         let crossings = crossings(&grid);
         let n = grid.dofs();
         let a = SparseMatrix::zeros(assembler.pattern().clone(), 1);
-        let linear = LinearSolver::new(Some(&grid.positions));
+        let linear = LinearSolver::new(Some(&grid.positions)).with_lattice(grid.sdf.dims, &grid.dof_nodes);
         let mut sim = Self {
             u: Matrix::zeros(n, 1, 1),
             v: Matrix::zeros(n, 1, 1),

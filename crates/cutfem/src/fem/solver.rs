@@ -21,6 +21,16 @@
 //!   but each costs a triangular solve of a factor with 8e7 entries and the factorization
 //!   costs seconds, so it is not faster than block-Jacobi on this machine.
 //!
+//! - `multigrid`: a geometric multigrid V-cycle ([`gpumat::Multigrid`]): trilinear
+//!   prolongations of the grid lattice (every second node per axis, down to at most
+//!   [`MULTIGRID`]`.max_coarse` nodes, [`gpumat::solve::lattice_prolongations`]), Galerkin coarse
+//!   operators `P^T A P`, damped block-Jacobi V(2,2) smoothing and a sparse Cholesky solve of the
+//!   coarsest level. The hierarchy's patterns are built once per pattern of `A` and kept between
+//!   steps; every solve recomputes its values ([`gpumat::Multigrid::refresh`], counted as a
+//!   factorization). Its CG iterations barely grow with the resolution (docs/simulation.md).
+//!   Needs the grid lattice ([`LinearSolver::with_lattice`], given by a grid
+//!   [`Simulation`](super::Simulation)); without it the solve is an error.
+//!
 //! **A matrix that outlives its time step is factored and solved directly**
 //! ([`SolverSettings::reuse_factor`], scene key `[numerics] reuse_factor`, on by default). A
 //! linear model without contact has the same Newmark matrix `A = M/(theta dt)^2 ... + K` (eq.
@@ -46,9 +56,10 @@
 //! [`StepInfo`](super::StepInfo) counts the factorizations of a step and their seconds.
 
 use crate::error::Error;
+use gpumat::solve::lattice_prolongations;
 use gpumat::{
     cg, nested_dissection, BlockIc0, BlockJacobi, CgError, CgInfo, CgParams, Ic0Params, Mat3, Matrix,
-    SparseCholesky, SparseMatrix, Vec3,
+    Multigrid, MultigridParams, SparseCholesky, SparseMatrix, Vec3,
 };
 use std::time::Instant;
 
@@ -64,18 +75,26 @@ pub enum Preconditioner {
     BlockIc0,
     /// sparse Cholesky factor of the rest-state `A`, refactored when CG needs many iterations
     RestCholesky,
+    /// geometric multigrid V-cycle on the grid lattice, values refreshed every step
+    Multigrid,
 }
 
 impl Preconditioner {
     /// Every preconditioner, in the order of the docs.
-    pub const ALL: [Preconditioner; 3] = [Self::BlockJacobi, Self::BlockIc0, Self::RestCholesky];
+    pub const ALL: [Preconditioner; 4] = [
+        Self::BlockJacobi,
+        Self::BlockIc0,
+        Self::RestCholesky,
+        Self::Multigrid,
+    ];
 
-    /// The scene name (`block_jacobi`, `block_ic0`, `rest_cholesky`).
+    /// The scene name (`block_jacobi`, `block_ic0`, `rest_cholesky`, `multigrid`).
     pub fn name(self) -> &'static str {
         match self {
             Self::BlockJacobi => "block_jacobi",
             Self::BlockIc0 => "block_ic0",
             Self::RestCholesky => "rest_cholesky",
+            Self::Multigrid => "multigrid",
         }
     }
 }
@@ -98,6 +117,8 @@ pub struct SolverSettings {
     pub reuse_factor: bool,
     /// the most entries of such a factor (8 bytes each); a larger one is not made
     pub max_reused_factor: usize,
+    /// the `multigrid` preconditioner's options (default [`MULTIGRID`])
+    pub multigrid: MultigridParams,
 }
 
 impl Default for SolverSettings {
@@ -114,6 +135,7 @@ impl Default for SolverSettings {
             refactor_iterations: 25,
             reuse_factor: true,
             max_reused_factor: MAX_REUSED_FACTOR,
+            multigrid: MULTIGRID,
         }
     }
 }
@@ -137,6 +159,16 @@ pub struct SolveInfo {
 /// iterations than plain IC(0) (0) on the Table B.5/B.6 cuboid, and a few percent fewer than
 /// 0.9.
 pub const IC0_RELAXATION: f64 = 0.95;
+
+/// The options of the `multigrid` preconditioner: V(2,2) with Chebyshev smoothing of degree 2,
+/// coarsest level at most 2000 nodes.
+pub const MULTIGRID: MultigridParams = MultigridParams {
+    max_levels: 12,
+    smoother: gpumat::solve::Smoother::Chebyshev,
+    sweeps: 2,
+    omega: 0.7,
+    max_coarse: 2000,
+};
 
 /// `(shift, relaxation)` tried in turn when IC(0) meets a pivot that is not positive definite.
 const IC0_TRIES: [(f64, f64); 6] = [
@@ -173,6 +205,10 @@ pub struct LinearSolver {
     too_large: Option<std::sync::Arc<gpumat::SparsityPattern>>,
     /// solves on a device (`[numerics] backend = "cuda"`, [`super::device_solve`])
     device: Option<super::device_solve::DeviceSolver>,
+    /// the lattice dims and the lattice node of each block row (`multigrid`)
+    lattice: Option<([usize; 3], Vec<usize>)>,
+    /// the multigrid hierarchy of the last pattern
+    multigrid: Option<Multigrid>,
 }
 
 /// The next solve's matrix is factored (when not kept already) if at least this many solves
@@ -207,6 +243,52 @@ impl LinearSolver {
             coords: positions.map(|p| p.iter().map(|v| [v.x, v.y, v.z]).collect()),
             ..Self::default()
         }
+    }
+
+    /// This solver with the lattice of the block rows: `nodes[i]` is the lattice index
+    /// `i + dims[0] (j + dims[1] k)` of block row `i` (the `multigrid` preconditioner's
+    /// coarsening).
+    pub fn with_lattice(mut self, dims: [usize; 3], nodes: &[usize]) -> Self {
+        self.lattice = Some((dims, nodes.to_vec()));
+        self.multigrid = None;
+        self
+    }
+
+    /// The multigrid hierarchy for `a`: built when `a`'s pattern is new, else refreshed with
+    /// `a`'s values. `Ok(false)`: it could not be made from these values (block-Jacobi serves
+    /// this step).
+    fn refresh_multigrid(&mut self, a: &SparseMatrix<Mat3<f64>>, params: &MultigridParams) -> Result<bool, Error> {
+        let Some((dims, nodes)) = &self.lattice else {
+            return Err(Error::Invalid(
+                "linear solve: preconditioner \"multigrid\" needs a grid's lattice (a grid simulation)".into(),
+            ));
+        };
+        if nodes.len() != a.rows() {
+            return Err(Error::Invalid(format!(
+                "linear solve: preconditioner \"multigrid\": the lattice has {} nodes for {} block rows",
+                nodes.len(),
+                a.rows()
+            )));
+        }
+        let made = match &mut self.multigrid {
+            Some(mg) if mg.pattern().same_as(a.pattern()) && mg.params() == params => mg.refresh(a),
+            _ => {
+                let p = lattice_prolongations(*dims, nodes, params);
+                Multigrid::new(a, p, *params).map(|mg| self.multigrid = Some(mg))
+            }
+        };
+        Ok(made.is_ok())
+    }
+
+    /// Levels of the multigrid hierarchy kept (block rows of each, finest first), if any.
+    pub fn multigrid_levels(&self) -> Option<Vec<usize>> {
+        self.multigrid.as_ref().map(|m| m.level_rows())
+    }
+
+    /// The multigrid hierarchy's estimates of `lambda_max(D^-1 A)` per smoothed level, if one
+    /// is kept.
+    pub fn multigrid_lambda_max(&self) -> Option<Vec<f64>> {
+        self.multigrid.as_ref().map(|m| m.lambda_max())
     }
 
     /// Solves on `device` from now on (`None`: on the host), [`super::device_solve`].
@@ -324,6 +406,19 @@ impl LinearSolver {
                 }
             }
             Preconditioner::RestCholesky => return self.solve_rest_cholesky(a, b, x, settings, info),
+            Preconditioner::Multigrid => {
+                let t = Instant::now();
+                let made = self.refresh_multigrid(a, &settings.multigrid)?;
+                info.factor_s = t.elapsed().as_secs_f64();
+                match self.multigrid.as_ref().filter(|_| made) {
+                    Some(mg) => {
+                        info.factorizations = 1;
+                        self.factorizations += 1;
+                        cg(a, b, x, &mg.preconditioner(a), &settings.cg)
+                    }
+                    None => cg(a, b, x, &BlockJacobi::new(a)?, &settings.cg),
+                }
+            }
         };
         self.finish(outcome, a, b, x, settings, info)
     }

@@ -29,7 +29,7 @@ pub struct NumericsSection {
     #[serde(default)]
     pub diffusion: crate::fem::advect::DisplacementExtension,
     /// CG preconditioner of the step's linear solve: "block_ic0" (default), "block_jacobi" (the
-    /// thesis') or "rest_cholesky" ([`crate::fem::solver`])
+    /// thesis'), "rest_cholesky" or "multigrid" ([`crate::fem::solver`])
     #[serde(default)]
     pub preconditioner: crate::fem::Preconditioner,
     /// factor a Newmark matrix met again at a later step (a linear model without contact: the

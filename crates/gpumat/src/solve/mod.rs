@@ -16,7 +16,7 @@ pub use cg::{cg, run_cg, CgError, CgInfo, CgOps, CgParams, CgState};
 pub use cholesky::SparseCholesky;
 pub use dense::{invert_small, SmallCholesky};
 pub use ic0::{BlockIc0, Ic0Params};
-pub use multigrid::{lattice_prolongations, Multigrid, MultigridCycle, MultigridParams};
+pub use multigrid::{lattice_prolongations, Multigrid, MultigridCycle, MultigridParams, Smoother};
 pub use ordering::nested_dissection;
 pub use precond::{BlockJacobi, IdentityPreconditioner, Jacobi};
 

@@ -119,6 +119,18 @@ impl Simulation {
         self.linear.reused_factor_entries()
     }
 
+    /// Block rows of each level of the `multigrid` preconditioner's hierarchy (finest first),
+    /// when one is kept.
+    pub fn multigrid_levels(&self) -> Option<Vec<usize>> {
+        self.linear.multigrid_levels()
+    }
+
+    /// The multigrid hierarchy's estimates of `lambda_max(D^-1 A)` per smoothed level (the
+    /// Chebyshev smoother's), when one is kept.
+    pub fn multigrid_lambda_max(&self) -> Option<Vec<f64>> {
+        self.linear.multigrid_lambda_max()
+    }
+
     /// Runs the linear solves on `device` (`None`: on the host); `[numerics] backend = "cuda"`
     /// sets CUDA device 0 ([`crate::fem::device_solve`]).
     pub fn set_device(&mut self, device: Option<std::sync::Arc<dyn gpumat::device::Device>>) {

@@ -16,9 +16,12 @@
 //! smoothers and the coarsest factor) from a new `A` on the same pattern: pattern once, values
 //! every step.
 //!
-//! **Smoother.** Damped block-Jacobi, `x <- x + omega D_l^-1 (b - A_l x)` with `D_l` the 3x3
-//! diagonal blocks of `A_l` ([`MultigridParams::omega`], default 0.7). It is symmetric in the
-//! `A_l` inner product and converges when `omega lambda_max(D_l^-1 A_l) < 2`.
+//! **Smoother** ([`Smoother`], module `smoother`): a polynomial in `D_l^-1 A_l` with `D_l` the
+//! 3x3 diagonal blocks of `A_l`, self-adjoint in the `A_l` inner product: damped block-Jacobi
+//! `x <- x + omega D_l^-1 (b - A_l x)` (converges while `omega lambda_max(D_l^-1 A_l) < 2`), or
+//! (the default) a Chebyshev polynomial over `[0.1, 1.1] lambda_l`, `lambda_l` a power-iteration
+//! estimate of `lambda_max(D_l^-1 A_l)` made at every refresh, which adapts to the spectrum's
+//! scale (cut cells, penalties) where a fixed `omega` may not.
 //!
 //! **Cycle.** `V(nu, nu)` ([`MultigridParams::sweeps`] = `nu`) from `x = 0` at every level:
 //! `nu` smoothing sweeps, the residual restricted by `P_l^T`, the coarse correction (recursively;
@@ -58,10 +61,12 @@
 
 mod galerkin;
 mod lattice;
+mod smoother;
 #[cfg(test)]
 mod tests;
 
 pub use lattice::lattice_prolongations;
+pub use smoother::Smoother;
 
 use super::{Preconditioner, SparseCholesky};
 use crate::block::{Mat3, Vec3};
@@ -69,6 +74,7 @@ use crate::error::Error;
 use crate::matrix::Matrix;
 use crate::sparse::{SparseMatrix, SparsityPattern};
 use galerkin::Galerkin;
+use smoother::{estimate_lambda_max, Smoothing};
 use std::sync::Arc;
 
 /// Options of [`Multigrid`] and [`lattice_prolongations`] (module docs).
@@ -76,7 +82,10 @@ use std::sync::Arc;
 pub struct MultigridParams {
     /// the most levels, the finest included
     pub max_levels: usize,
-    /// smoothing sweeps before and after the coarse correction (`nu` of `V(nu, nu)`)
+    /// the smoother
+    pub smoother: Smoother,
+    /// smoothing sweeps (Chebyshev: the degree) before and after the coarse correction (`nu`
+    /// of `V(nu, nu)`)
     pub sweeps: usize,
     /// damping of the block-Jacobi smoother
     pub omega: f64,
@@ -88,6 +97,7 @@ impl Default for MultigridParams {
     fn default() -> Self {
         Self {
             max_levels: 12,
+            smoother: Smoother::Chebyshev,
             sweeps: 2,
             omega: 0.7,
             max_coarse: 2000,
@@ -101,8 +111,10 @@ struct Level {
     /// `P_l`: level `l + 1` to level `l`
     p: SparseMatrix<f64>,
     galerkin: Galerkin,
-    /// `omega D_l^-1`
+    /// `D_l^-1`
     dinv: Matrix<Mat3<f64>>,
+    /// the estimate of `lambda_max(D_l^-1 A_l)` (Chebyshev)
+    lambda: f64,
 }
 
 /// A multigrid hierarchy of a BSR matrix (module docs).
@@ -119,8 +131,8 @@ pub struct Multigrid {
     ap: Vec<Mat3<f64>>,
 }
 
-/// `omega D^-1` of batch 0 of `a`.
-fn scaled_inverse_diagonal(a: &SparseMatrix<Mat3<f64>>, omega: f64) -> Result<Matrix<Mat3<f64>>, Error> {
+/// `D^-1` of batch 0 of `a`.
+fn inverse_diagonal(a: &SparseMatrix<Mat3<f64>>) -> Result<Matrix<Mat3<f64>>, Error> {
     let p = a.pattern();
     let diag = p.diagonal_entries();
     let vals = a.batch_values(0);
@@ -131,7 +143,7 @@ fn scaled_inverse_diagonal(a: &SparseMatrix<Mat3<f64>>, omega: f64) -> Result<Ma
             .inverse()
             .filter(|m| m.m.iter().flatten().all(|v| v.is_finite()))
             .ok_or(Error::SingularDiagonal { row: r, batch: 0 })?;
-        out.set(r, 0, 0, inv * omega);
+        out.set(r, 0, 0, inv);
     }
     Ok(out)
 }
@@ -168,6 +180,7 @@ impl Multigrid {
                 p: pl,
                 galerkin,
                 dinv: Matrix::zeros(0, 1, 1),
+                lambda: 0.0,
             });
         }
         // the coarsest operator's values are not known yet: analyse its pattern only
@@ -193,12 +206,18 @@ impl Multigrid {
             self.fine.same_as(a.pattern()) && a.batches() == 1,
             "gpumat::Multigrid::refresh: the matrix has another pattern or several batches"
         );
-        let omega = self.params.omega;
+        let chebyshev = self.params.smoother == Smoother::Chebyshev;
         for l in 0..self.levels.len() {
             let (done, rest) = self.coarse.split_at_mut(l);
             let fine = if l == 0 { a } else { &done[l - 1] };
             let level = &mut self.levels[l];
-            level.dinv = scaled_inverse_diagonal(fine, omega)?;
+            level.dinv = inverse_diagonal(fine)?;
+            if chebyshev {
+                level.lambda = estimate_lambda_max(fine, &level.dinv);
+                if !(level.lambda > 0.0 && level.lambda.is_finite()) {
+                    return Err(Error::SingularDiagonal { row: 0, batch: 0 });
+                }
+            }
             let ap = &mut self.ap[..level.galerkin.ap_nnz()];
             level.galerkin.values(fine, &level.p, ap, &mut rest[0]);
         }
@@ -216,6 +235,17 @@ impl Multigrid {
         std::iter::once(self.fine.rows())
             .chain(self.coarse.iter().map(|c| c.rows()))
             .collect()
+    }
+
+    /// The estimates of `lambda_max(D_l^-1 A_l)` of the smoothed levels (Chebyshev; 0 with
+    /// block-Jacobi).
+    pub fn lambda_max(&self) -> Vec<f64> {
+        self.levels.iter().map(|l| l.lambda).collect()
+    }
+
+    /// The pattern of the fine matrix.
+    pub fn pattern(&self) -> &Arc<SparsityPattern> {
+        &self.fine
     }
 
     /// The options.
@@ -250,36 +280,25 @@ impl Multigrid {
             return;
         }
         let level = &self.levels[l];
-        let al = self.op(a, l);
-        let dinv = &level.dinv;
+        let smoothing = Smoothing {
+            a: self.op(a, l),
+            dinv: &level.dinv,
+            lambda: level.lambda,
+            kind: self.params.smoother,
+            sweeps: self.params.sweeps,
+            omega: self.params.omega,
+        };
         let mut t = Matrix::zeros_shape(b.shape());
-        // pre-smoothing from zero: the first sweep is x = omega D^-1 b
-        x.assign(dinv.ex().cwise_mul(b.ex()));
-        for _ in 1..self.params.sweeps {
-            smooth(al, dinv, b, x, &mut t);
-        }
+        let mut d = Matrix::zeros_shape(b.shape());
+        smoothing.run(b, x, true, &mut t, &mut d);
         // coarse correction
-        t.assign(b - al * &*x);
+        t.assign(b - smoothing.a * &*x);
         let bc = Matrix::eval(level.p.transpose_mul(t.ex()));
         let mut xc = Matrix::zeros_shape(bc.shape());
         self.cycle(a, l + 1, &bc, &mut xc);
         x.assign_with(|x| x + level.p.mul(xc.ex()));
-        for _ in 0..self.params.sweeps {
-            smooth(al, dinv, b, x, &mut t);
-        }
+        smoothing.run(b, x, false, &mut t, &mut d);
     }
-}
-
-/// One damped block-Jacobi sweep `x <- x + omega D^-1 (b - A x)` (`t`: scratch).
-fn smooth(
-    a: &SparseMatrix<Mat3<f64>>,
-    dinv: &Matrix<Mat3<f64>>,
-    b: &Matrix<Vec3<f64>>,
-    x: &mut Matrix<Vec3<f64>>,
-    t: &mut Matrix<Vec3<f64>>,
-) {
-    t.assign(x.ex() + dinv.ex().cwise_mul(b - a * &*x));
-    std::mem::swap(x, t);
 }
 
 /// The V-cycle of a [`Multigrid`] with its fine matrix: the [`Preconditioner`] for [`cg`].

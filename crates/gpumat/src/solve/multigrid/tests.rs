@@ -86,10 +86,23 @@ fn multigrid_iterations_do_not_grow_with_the_lattice() {
         let b = noise(a.rows(), n as u64);
         let mut x = Matrix::zeros(a.rows(), 1, 1);
         let info = cg(&a, &b, &mut x, &mg.preconditioner(&a), &cgp).unwrap();
+        let jacobi = MultigridParams {
+            smoother: Smoother::Jacobi,
+            ..params
+        };
+        let mut xj = Matrix::zeros(a.rows(), 1, 1);
+        let mgj = hierarchy(n, &a, jacobi);
+        let ij = cg(&a, &b, &mut xj, &mgj.preconditioner(&a), &cgp).unwrap();
+        println!(
+            "n = {n}: lambda_max(D^-1 A) per level {:.3?}; block-Jacobi-smoothed (omega {}) multigrid {} iterations",
+            mg.lambda_max(),
+            jacobi.omega,
+            ij.iterations[0]
+        );
         let mut y = Matrix::zeros(a.rows(), 1, 1);
         let bj = cg(&a, &b, &mut y, &BlockJacobi::new(&a).unwrap(), &cgp).unwrap();
         println!(
-            "n = {n}: levels {:?}, multigrid {} iterations, block-Jacobi {}",
+            "n = {n}: levels {:?}, Chebyshev multigrid {} iterations, block-Jacobi {}",
             mg.level_rows(),
             info.iterations[0],
             bj.iterations[0]
