@@ -121,14 +121,22 @@ fn power_law(pts: &[(f64, f64)]) -> Option<(f64, Vec<(f64, f64)>)> {
 
 /// Table `scaling`'s chart: step and gradient time per step against active nodes, per body.
 pub fn scaling_chart(rows: &[Value]) -> Chart {
-    let mut bodies: Vec<&str> = rows.iter().filter_map(|r| r.get("body")?.as_str()).collect();
+    // one group per body and preconditioner (rows without the column: the default's)
+    let group = |r: &Value| -> Option<String> {
+        let body = r.get("body")?.as_str()?;
+        match r.get("preconditioner").and_then(Value::as_str) {
+            Some(p) if p != "block_ic0" => Some(format!("{body} ({p})")),
+            _ => Some(body.to_string()),
+        }
+    };
+    let mut bodies: Vec<String> = rows.iter().filter_map(group).collect();
     bodies.dedup();
     let mut series = Vec::new();
     let mut colour = 0;
     for body in bodies {
         let of_body: Vec<Value> = rows
             .iter()
-            .filter(|r| r.get("body").and_then(Value::as_str) == Some(body))
+            .filter(|r| group(r).as_deref() == Some(body.as_str()))
             .cloned()
             .collect();
         for (key, what) in [("step_s", "step"), ("gradient_s", "gradient per step")] {

@@ -3,18 +3,19 @@
 //! resolution) and a scan body (the thesis' bunny, `bunny_small.sdf`, resampled from its
 //! trilinear interpolant to each resolution, falling on the ground of
 //! `examples/scenes/bunny_ground.toml`), from about 1e3 to 1e5 active nodes, with the
-//! scene's own model and the default solver settings (IC(0), corotation). Per body the
-//! exponent `p` of `time ~ nodes^p` is the least-squares slope of `ln time` against
-//! `ln nodes`, and likewise for the CG iterations per step.
+//! scene's own model and the default solver settings (IC(0), corotation), and again with the
+//! `multigrid` preconditioner (geometric multigrid V-cycle, `cutfem::fem::solver`). Per body and
+//! preconditioner the exponent `p` of `time ~ nodes^p` is the least-squares slope of `ln time`
+//! against `ln nodes`, and likewise for the CG iterations per step.
 //!
 //! For the cuboid also a gradient (forward + cost + backward, Table 5.2's problem: Young's
 //! modulus and Poisson ratio, the surface cost of 4 cameras of 32 x 32 pixels, 3 steps) per
-//! step. The bunny's gradient is not timed: its scene reads an SDF file, whose own spacing sets
+//! step (with the default preconditioner only). The bunny's gradient is not timed: its scene reads an SDF file, whose own spacing sets
 //! the grid of a fit (the step rows resample the file).
 
 use crate::progress;
 use crate::report::{col, markdown_table, Col, Fmt};
-use cutfem::fem::{Grid, Simulation};
+use cutfem::fem::{Grid, Preconditioner, Simulation};
 use cutfem::scene::Scene;
 use serde::Serialize;
 use std::path::Path;
@@ -25,6 +26,8 @@ use std::time::Instant;
 pub struct Row {
     /// "cuboid" or "bunny"
     pub body: String,
+    /// the CG preconditioner's scene name (`block_ic0`: the default)
+    pub preconditioner: String,
     /// grid cells per world unit
     pub resolution: f64,
     /// active nodes (degrees of freedom / 3)
@@ -37,6 +40,9 @@ pub struct Row {
     pub step_s: f64,
     pub assembly_s: f64,
     pub solve_s: f64,
+    /// seconds per step in the preconditioner's set-up (IC(0) factorization, multigrid
+    /// refresh), part of `solve_s`
+    pub setup_s: f64,
     /// CG iterations per step
     pub cg_iterations: f64,
     /// seconds per step of a gradient (forward + cost + backward; the cuboid only)
@@ -69,24 +75,37 @@ pub fn log_slope(points: &[(f64, f64)]) -> Option<f64> {
     (sxx > 0.0).then(|| sxy / sxx)
 }
 
-/// Times `steps` steps (after one untimed) of `scene`'s model on `grid`.
-fn time_steps(body: &str, scene: &Scene, grid: Grid, resolution: f64, steps: usize) -> Result<Row, String> {
+/// Times `steps` steps (after one untimed) of `scene`'s model on `grid` with preconditioner
+/// `pre` (`None`: the scene's).
+fn time_steps(
+    body: &str,
+    scene: &Scene,
+    grid: Grid,
+    resolution: f64,
+    steps: usize,
+    pre: Option<Preconditioner>,
+) -> Result<Row, String> {
     let model = scene.build_model(&grid).map_err(|e| e.to_string())?;
     let mut sim = Simulation::new(grid, model).map_err(|e| e.to_string())?;
     sim.solver = scene.solver_settings(sim.solver);
+    if let Some(p) = pre {
+        sim.solver.preconditioner = p;
+    }
     sim.step().map_err(|e| e.to_string())?;
-    let (mut total, mut asm, mut solve, mut its) = (0.0, 0.0, 0.0, 0.0);
+    let (mut total, mut asm, mut solve, mut its, mut setup) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for _ in 0..steps {
         let t = Instant::now();
         let info = sim.step().map_err(|e| e.to_string())?;
         total += t.elapsed().as_secs_f64();
         asm += info.assembly_s;
         solve += info.solve_s;
+        setup += info.factor_s;
         its += info.iterations as f64;
     }
     let n = steps as f64;
     Ok(Row {
         body: body.to_string(),
+        preconditioner: sim.solver.preconditioner.name().to_string(),
         resolution,
         nodes: sim.grid.dofs(),
         cells: sim.grid.cells.len(),
@@ -94,6 +113,7 @@ fn time_steps(body: &str, scene: &Scene, grid: Grid, resolution: f64, steps: usi
         step_s: total / n,
         assembly_s: asm / n,
         solve_s: solve / n,
+        setup_s: setup / n,
         cg_iterations: its / n,
         gradient_s: None,
         step_exponent: None,
@@ -118,13 +138,15 @@ fn gradient(scene: &Scene, resolution: f64, steps: usize) -> Result<f64, String>
     Ok(best / steps as f64)
 }
 
-/// The rows of one body at `resolutions`, with its exponents.
+/// The rows of one body at `resolutions` with preconditioner `pre` (`None`: the scene's), with
+/// their exponents.
 fn body_rows(
     body: &str,
     scene_file: &str,
     resolutions: &[f64],
     steps: usize,
     gradients: bool,
+    pre: Option<Preconditioner>,
 ) -> Result<Vec<Row>, String> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../..")
@@ -132,10 +154,11 @@ fn body_rows(
     let scene = Scene::load(&path).map_err(|e| format!("{scene_file}: {e}"))?;
     let mut rows = Vec::new();
     for &r in resolutions {
-        progress(&format!("scaling: {body} at {r} cells per unit"));
+        let with = pre.map_or(String::new(), |p| format!(", {}", p.name()));
+        progress(&format!("scaling: {body} at {r} cells per unit{with}"));
         let sdf = scene.body_sdf_at(Some(r)).map_err(|e| e.to_string())?;
         let grid = Grid::new(sdf).map_err(|e| e.to_string())?;
-        let mut row = time_steps(body, &scene, grid, r, steps)?;
+        let mut row = time_steps(body, &scene, grid, r, steps, pre)?;
         if gradients {
             progress(&format!("scaling: {body} at {r} cells per unit, gradient"));
             row.gradient_s = Some(gradient(&scene, r, steps)?);
@@ -169,14 +192,35 @@ pub fn table(quick: bool, notes: &mut Vec<String>) -> Vec<Row> {
         )
     };
     let mut rows = Vec::new();
-    for (body, scene, res, gradients) in [
-        ("cuboid", "examples/scenes/cuboid_dirichlet.toml", cuboid, true),
-        ("bunny", "examples/scenes/bunny_ground.toml", bunny, false),
+    for (body, scene, res, gradients, pre) in [
+        (
+            "cuboid",
+            "examples/scenes/cuboid_dirichlet.toml",
+            cuboid,
+            true,
+            None,
+        ),
+        (
+            "cuboid",
+            "examples/scenes/cuboid_dirichlet.toml",
+            cuboid,
+            false,
+            Some(Preconditioner::Multigrid),
+        ),
+        ("bunny", "examples/scenes/bunny_ground.toml", bunny, false, None),
+        (
+            "bunny",
+            "examples/scenes/bunny_ground.toml",
+            bunny,
+            false,
+            Some(Preconditioner::Multigrid),
+        ),
     ] {
-        match body_rows(body, scene, res, 3, gradients) {
+        match body_rows(body, scene, res, 3, gradients, pre) {
             Ok(mut r) => rows.append(&mut r),
             Err(e) => {
-                let why = format!("scaling: {body} failed: {e}");
+                let with = pre.map_or(String::new(), |p| format!(" with {}", p.name()));
+                let why = format!("scaling: {body}{with} failed: {e}");
                 eprintln!("warning: {why}");
                 notes.push(why);
             }
@@ -189,12 +233,14 @@ pub fn table(quick: bool, notes: &mut Vec<String>) -> Vec<Row> {
 fn columns() -> Vec<Col> {
     vec![
         col("body", "body", Fmt::Plain),
+        col("preconditioner", "preconditioner", Fmt::Plain),
         col("cells/unit", "resolution", Fmt::Plain),
         col("nodes", "nodes", Fmt::Plain),
         col("cells", "cells", Fmt::Plain),
         col("step ms", "step_s", Fmt::SecondsAsMs),
         col("assembly ms", "assembly_s", Fmt::SecondsAsMs),
         col("solve ms", "solve_s", Fmt::SecondsAsMs),
+        col("set-up ms", "setup_s", Fmt::SecondsAsMs),
         col("CG its", "cg_iterations", Fmt::Ratio),
         col("gradient ms/step", "gradient_s", Fmt::SecondsAsMs),
         col("p (step ~ nodes^p)", "step_exponent", Fmt::Ratio),
@@ -208,10 +254,13 @@ pub fn markdown(rows: &[serde_json::Value]) -> String {
     markdown_table(
         "Table scaling: step time against the number of active nodes",
         "The scenes' models and default solver settings (block IC(0) CG, relative tolerance 1e-6, \
-         corotation; the bunny also meets the ground); seconds per step averaged over 3 steps after \
-         one untimed step; gradient: forward + cost + backward per step of Table 5.2's problem \
-         (E and nu, 4 cameras of 32 x 32 pixels, 3 steps; the cuboid only). p: least-squares \
-         slope of ln(time) (and ln(CG iterations)) against ln(nodes) over the body's rows.",
+         corotation; the bunny also meets the ground), then the same with the multigrid \
+         preconditioner (V(3,3) cycle, Chebyshev smoothing, Galerkin coarse levels); seconds per \
+         step averaged over 3 steps after one untimed step; set-up: the preconditioner's \
+         factorization or refresh, within the solve; gradient: forward + cost + backward per step \
+         of Table 5.2's problem (E and nu, 4 cameras of 32 x 32 pixels, 3 steps; the cuboid with \
+         the default preconditioner only). p: least-squares slope of ln(time) (and ln(CG \
+         iterations)) against ln(nodes) over the rows of one body and preconditioner.",
         rows,
         &columns(),
     )
@@ -241,6 +290,7 @@ mod tests {
             &[6.0, 10.0],
             1,
             true,
+            None,
         )
         .unwrap();
         assert!(rows[1].nodes > rows[0].nodes && rows[1].cells > rows[0].cells);

@@ -128,5 +128,52 @@ fn multigrid_converges_on_the_bunny_on_the_ground() {
         );
     }
     assert!(d < 1e-6, "{d:e}");
-    assert!(mean(&mg.iterations) < mean(&ic0.iterations), "{:?}", mg.iterations);
+    assert!(
+        mean(&mg.iterations) < mean(&ic0.iterations),
+        "{:?}",
+        mg.iterations
+    );
+}
+
+#[test]
+#[ignore]
+/// The smoother settings compared in `cutfem::fem::solver::MULTIGRID`'s docs (run by hand:
+/// `--ignored`).
+fn multigrid_smoother_settings_on_cut_and_aligned_cuboids() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/scenes/cuboid_dirichlet.toml");
+    let scene = Scene::load(&path).unwrap();
+    let mut cases = Vec::new();
+    for res in [16.0, 24.0] {
+        let grid = Grid::new(scene.body_sdf_at(Some(res)).unwrap()).unwrap();
+        let model = scene.build_model(&grid).unwrap();
+        cases.push((
+            format!("scene {res}"),
+            grid,
+            model,
+            scene.solver_settings(SolverSettings::default()),
+        ));
+    }
+    let (grid, model) = thesis_cuboid_grid(10.0, false);
+    cases.push((
+        "thesis r10".into(),
+        grid,
+        model,
+        settings(Preconditioner::Multigrid, 1e-6),
+    ));
+    for (name, grid, model, base) in &cases {
+        for (lower, sweeps) in [(0.1, 2), (0.1, 3), (0.2, 3), (0.1, 4), (0.03, 3)] {
+            let mut s = *base;
+            s.preconditioner = Preconditioner::Multigrid;
+            s.multigrid.chebyshev_lower = lower;
+            s.multigrid.sweeps = sweeps;
+            let r = run(grid, model, s, 3);
+            println!(
+                "{name} nodes {} lower {lower} sweeps {sweeps}: levels {:?} lambda {:.3?} its {:?}",
+                grid.dofs(),
+                r.levels,
+                r.lambda,
+                r.iterations
+            );
+        }
+    }
 }

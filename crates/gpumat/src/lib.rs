@@ -65,7 +65,7 @@ pub use product::{matmul, matmul_into};
 pub use scalar::{CastFrom, Real, Scalar, ScalarMul};
 pub use solve::{
     cg, nested_dissection, BlockIc0, BlockJacobi, CgError, CgInfo, CgParams, Ic0Params,
-    IdentityPreconditioner, Jacobi, LinearOperator, Multigrid, MultigridParams, Preconditioner, SparseCholesky,
-    Transposed,
+    IdentityPreconditioner, Jacobi, LinearOperator, Multigrid, MultigridParams, Preconditioner,
+    SparseCholesky, Transposed,
 };
 pub use sparse::{BlockScalar, SparseMatrix, SparsityPattern};

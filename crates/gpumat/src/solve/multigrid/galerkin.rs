@@ -55,7 +55,9 @@ fn product_pattern(
 /// `out[pos of col] += v` in a sorted row.
 #[inline(always)]
 fn add_at(cols: &[u32], vals: &mut [Mat3<f64>], col: u32, v: Mat3<f64>) {
-    let q = cols.binary_search(&col).expect("the symbolic product holds every entry");
+    let q = cols
+        .binary_search(&col)
+        .expect("the symbolic product holds every entry");
     vals[q] = vals[q] + v;
 }
 

@@ -27,7 +27,11 @@ use crate::sparse::SparseMatrix;
 /// assert_eq!((p[0].get(1, 0, 0), p[0].get(1, 1, 0), p[0].get(2, 1, 0)), (0.5, 0.5, 1.0));
 /// ```
 #[track_caller]
-pub fn lattice_prolongations(dims: [usize; 3], nodes: &[usize], params: &MultigridParams) -> Vec<SparseMatrix<f64>> {
+pub fn lattice_prolongations(
+    dims: [usize; 3],
+    nodes: &[usize],
+    params: &MultigridParams,
+) -> Vec<SparseMatrix<f64>> {
     let total = dims[0] * dims[1] * dims[2];
     assert!(
         nodes.iter().all(|&n| n < total),
@@ -90,5 +94,9 @@ fn coarsen(dims: [usize; 3], nodes: &[usize]) -> (SparseMatrix<f64>, [usize; 3],
         .into_iter()
         .map(|(r, c, w)| (r, coarse_of[c] as usize, w))
         .collect();
-    (SparseMatrix::from_triplets(nodes.len(), cnodes.len(), &trip), cdims, cnodes)
+    (
+        SparseMatrix::from_triplets(nodes.len(), cnodes.len(), &trip),
+        cdims,
+        cnodes,
+    )
 }

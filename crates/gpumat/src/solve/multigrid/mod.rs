@@ -19,7 +19,8 @@
 //! **Smoother** ([`Smoother`], module `smoother`): a polynomial in `D_l^-1 A_l` with `D_l` the
 //! 3x3 diagonal blocks of `A_l`, self-adjoint in the `A_l` inner product: damped block-Jacobi
 //! `x <- x + omega D_l^-1 (b - A_l x)` (converges while `omega lambda_max(D_l^-1 A_l) < 2`), or
-//! (the default) a Chebyshev polynomial over `[0.1, 1.1] lambda_l`, `lambda_l` a power-iteration
+//! (the default) a Chebyshev polynomial over `[0.1, 1.1] lambda_l` (the lower end:
+//! [`MultigridParams::chebyshev_lower`]), `lambda_l` a power-iteration
 //! estimate of `lambda_max(D_l^-1 A_l)` made at every refresh, which adapts to the spectrum's
 //! scale (cut cells, penalties) where a fixed `omega` may not.
 //!
@@ -89,6 +90,9 @@ pub struct MultigridParams {
     pub sweeps: usize,
     /// damping of the block-Jacobi smoother
     pub omega: f64,
+    /// the lower end of the Chebyshev interval relative to the estimate of
+    /// `lambda_max(D^-1 A)` (the upper end is 1.1 times it)
+    pub chebyshev_lower: f64,
     /// coarsen until a level has at most this many block unknowns (lattice nodes)
     pub max_coarse: usize,
 }
@@ -98,8 +102,9 @@ impl Default for MultigridParams {
         Self {
             max_levels: 12,
             smoother: Smoother::Chebyshev,
-            sweeps: 2,
+            sweeps: 3,
             omega: 0.7,
+            chebyshev_lower: 0.1,
             max_coarse: 2000,
         }
     }
@@ -165,7 +170,11 @@ impl Multigrid {
                 cols: pat.cols(),
             });
         }
-        assert!(a.batches() == 1, "gpumat::Multigrid: {} batches, one is supported", a.batches());
+        assert!(
+            a.batches() == 1,
+            "gpumat::Multigrid: {} batches, one is supported",
+            a.batches()
+        );
         p.truncate(params.max_levels.max(1) - 1);
         let mut levels = Vec::with_capacity(p.len());
         let mut coarse = Vec::with_capacity(p.len());
@@ -287,6 +296,7 @@ impl Multigrid {
             kind: self.params.smoother,
             sweeps: self.params.sweeps,
             omega: self.params.omega,
+            lower: self.params.chebyshev_lower,
         };
         let mut t = Matrix::zeros_shape(b.shape());
         let mut d = Matrix::zeros_shape(b.shape());

@@ -4,7 +4,7 @@
 //!
 //! - damped block-Jacobi, `x <- x + omega D^-1 (b - A x)`, `nu` sweeps: error propagation
 //!   `(I - omega D^-1 A)^nu`, convergent while `omega lambda_max(D^-1 A) < 2`;
-//! - Chebyshev of degree `nu` on `D^-1 A` over `[lower, upper] = [0.1, 1.1] lambda`, with
+//! - Chebyshev of degree `nu` on `D^-1 A` over `[lower, upper] = [f, 1.1] lambda` (`f`: [`MultigridParams::chebyshev_lower`](super::MultigridParams), default 0.1), with
 //!   `lambda` a power-iteration estimate of `lambda_max(D^-1 A)` ([`estimate_lambda_max`]): the
 //!   error propagation is the scaled Chebyshev polynomial `T_nu((theta - t) / delta) /
 //!   T_nu(theta / delta)` (`theta`, `delta`: centre and half width of the interval), smallest
@@ -16,9 +16,9 @@ use crate::matrix::Matrix;
 use crate::sparse::SparseMatrix;
 
 /// Power iterations of [`estimate_lambda_max`].
-const POWER_ITERATIONS: usize = 12;
-/// The Chebyshev interval relative to the estimate of `lambda_max(D^-1 A)`.
-pub(super) const CHEBYSHEV_INTERVAL: (f64, f64) = (0.1, 1.1);
+const POWER_ITERATIONS: usize = 10;
+/// The Chebyshev interval's upper end relative to the estimate of `lambda_max(D^-1 A)`.
+const CHEBYSHEV_UPPER: f64 = 1.1;
 
 /// Which smoother the levels use (module docs of [`super`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -63,6 +63,8 @@ pub(super) struct Smoothing<'a> {
     pub kind: Smoother,
     pub sweeps: usize,
     pub omega: f64,
+    /// the Chebyshev interval's lower end relative to `lambda`
+    pub lower: f64,
 }
 
 impl Smoothing<'_> {
@@ -90,8 +92,7 @@ impl Smoothing<'_> {
                 }
             }
             Smoother::Chebyshev => {
-                let (lo, hi) = CHEBYSHEV_INTERVAL;
-                let (lower, upper) = (lo * self.lambda, hi * self.lambda);
+                let (lower, upper) = (self.lower * self.lambda, CHEBYSHEV_UPPER * self.lambda);
                 let theta = 0.5 * (upper + lower);
                 let delta = 0.5 * (upper - lower);
                 let sigma = theta / delta;
