@@ -20,7 +20,7 @@ const POWER_ITERATIONS: usize = 10;
 /// The Chebyshev interval's upper end relative to the estimate of `lambda_max(D^-1 A)`.
 const CHEBYSHEV_UPPER: f64 = 1.1;
 
-/// Which smoother the levels use (module docs of [`super`]).
+/// Which smoother the levels use (the module docs of [`Multigrid`](super::Multigrid)).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Smoother {
     /// damped block-Jacobi, `sweeps` sweeps with damping `omega`
