@@ -192,7 +192,7 @@ pub fn friction_value(
     lam: Vec3<f64>,
 ) -> f64 {
     let n = g.normal;
-    let d = n.dot(x0 + u) - g.height;
+    let d = g.distance(x0 + u);
     let delta = u - u_next;
     mu * (-g.stiffness * g.law(d).0) * lam.dot(delta - n * n.dot(delta))
 }
@@ -223,7 +223,7 @@ pub fn friction_adjoint(
 ) -> FrictionAdjoint {
     let n = g.normal;
     let p = x0 + u;
-    let d = n.dot(p) - g.height;
+    let d = g.distance(p);
     let (s, s1) = g.law(d);
     let (force, slope) = (-g.stiffness * s, -g.stiffness * s1);
     let delta = u - u_next;
@@ -257,14 +257,14 @@ pub fn contact_value(
     lam: Vec3<f64>,
 ) -> f64 {
     let n = g.normal;
-    let d = n.dot(x0 + u) - g.height;
+    let d = g.distance(x0 + u);
     let k = g.stiffness;
     let (s, s1) = g.law(d);
     let force = match g.scheme {
         ContactScheme::Implicit => -k * s - theta * k * s1 * n.dot(u_next - u),
         ContactScheme::Thesis => -k * s - theta * dt * k * s1 * n.dot(v),
         ContactScheme::Penalty => {
-            let d1 = n.dot(x0 + u_next) - g.height;
+            let d1 = g.distance(x0 + u_next);
             let tc = g.contact_theta(theta);
             -k * ((1.0 - tc) * s + tc * g.law(d1).0)
         }
@@ -285,14 +285,14 @@ pub fn contact_adjoint(
 ) -> ContactAdjoint {
     let n = g.normal;
     let p = x0 + u;
-    let d = n.dot(p) - g.height;
+    let d = g.distance(p);
     let k = g.stiffness;
     let (s, s1) = g.law(d);
     let big_l = n.dot(lam);
     if g.scheme == ContactScheme::Penalty {
         // L = dt Lambda (-k) ((1 - theta_c) S(d) + theta_c S(d')), d' at the converged u'
         let p1 = x0 + u_next;
-        let d1 = n.dot(p1) - g.height;
+        let d1 = g.distance(p1);
         let (s_1, s1_1) = g.law(d1);
         let tc = g.contact_theta(theta);
         let inner = -k * ((1.0 - tc) * s + tc * s_1);

@@ -43,6 +43,11 @@ fn run(grid: &Grid, model: &Model, settings: SolverSettings, steps: usize) -> Ru
             .step()
             .unwrap_or_else(|e| panic!("{:?} step {s}: {e}", settings.preconditioner));
         assert!(!info.fallback);
+        assert!(
+            !info.substituted,
+            "step {s}: block-Jacobi stood in for {:?}",
+            settings.preconditioner
+        );
         if settings.preconditioner == Preconditioner::Multigrid {
             // the hierarchy's values are refreshed (a factorization of the coarsest level)
             assert_eq!(info.factorizations, 1, "step {s}");

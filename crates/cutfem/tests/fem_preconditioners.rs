@@ -27,6 +27,11 @@ fn run(grid: &Grid, model: &Model, settings: SolverSettings, steps: usize) -> Ru
     for _ in 0..steps {
         let info = sim.step().unwrap();
         assert!(!info.fallback, "{:?}: CG fell back", settings.preconditioner);
+        assert!(
+            !info.substituted,
+            "{:?}: block-Jacobi stood in",
+            settings.preconditioner
+        );
         assert!(info.factor_s <= info.solve_s);
         iterations.push(info.iterations);
         factorizations.push(info.factorizations);

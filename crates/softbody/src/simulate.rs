@@ -211,6 +211,7 @@ pub fn run(a: Args) -> Result<(), String> {
         },
         "solver": {
             "iterations": iterations, "max_residual": totals.info.residual, "fallbacks": totals.fallbacks,
+            "preconditioner_substituted": totals.substituted,
             "preconditioner": if sim.device_name().is_some() { "block_jacobi" } else { sim.solver.preconditioner.name() },
             "factorizations": sim.factorizations(),
             "backend": sim.device_name().unwrap_or_else(|| "cpu".into()),
@@ -232,6 +233,13 @@ pub fn run(a: Args) -> Result<(), String> {
     }
     if hovers && !a.json {
         crate::note!("{}", crate::diagnose::hover_note(&push));
+    }
+    if totals.substituted > 0 && !a.json {
+        crate::note!(
+            "warning: the {} preconditioner could not be made in {} of {steps} steps; block-Jacobi preconditioned them",
+            sim.solver.preconditioner.name(),
+            totals.substituted
+        );
     }
     dir.finish(&mut summary, "summary.json")?;
     if a.json {

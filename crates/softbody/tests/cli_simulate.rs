@@ -210,30 +210,28 @@ fn simulate_warns_when_the_ground_holds_the_body_off_the_plane() {
              [model]\neffects = [\"gravity\", \"damping\", \"ground\"]\n"
         )
     };
-    let softmin = scene(0.2, "stiffness = 1.0e4\nsoftness = 100.0");
-    let (o, _) = simulate(&dir, "softmin.toml", &softmin, &["--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let push = &v["ground_push"];
-    eprintln!("softmin: {push}");
+    // the JSON `ground_push` and the text output of one scene
+    let run = |name: &str, toml: &str| {
+        let (o, _) = simulate(&dir, name, toml, &["--json"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let push = v["ground_push"].clone();
+        eprintln!("{name}: {push}");
+        let (o, _) = simulate(&dir, name, toml, &[]);
+        let text = String::from_utf8_lossy(&o.stderr).to_string() + &String::from_utf8_lossy(&o.stdout);
+        (push, text)
+    };
+    let (push, text) = run("softmin.toml", &scene(0.2, "stiffness = 1.0e4\nsoftness = 100.0"));
     assert_eq!(push["hovers"], true, "{push}");
     assert_eq!(push["share_above_plane"], 1.0);
     assert!(push["mean_distance"].as_f64().unwrap() > 0.05, "{push}");
-    let (o, _) = simulate(&dir, "softmin.toml", &softmin, &[]);
-    let text = String::from_utf8_lossy(&o.stderr).to_string() + &String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("holds the body off the plane"), "{text}");
 
     let penalty = scene(0.1, "scheme = \"penalty\"\nstiffness = 1.0e5\nsoftness = 1.0e6");
-    let (o, _) = simulate(&dir, "penalty.toml", &penalty, &["--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let push = &v["ground_push"];
-    eprintln!("penalty: {push}");
+    let (push, text) = run("penalty.toml", &penalty);
     assert_eq!(push["hovers"], false, "{push}");
     assert_eq!(push["share_above_plane"], 0.0);
     let d = push["mean_distance"].as_f64().unwrap();
     assert!(d < 0.0 && d > -1e-3, "{push}");
-    let (o, _) = simulate(&dir, "penalty.toml", &penalty, &[]);
-    let text = String::from_utf8_lossy(&o.stderr).to_string() + &String::from_utf8_lossy(&o.stdout);
     assert!(!text.contains("off the plane"), "{text}");
 }

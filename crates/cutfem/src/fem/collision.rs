@@ -99,7 +99,30 @@ pub struct Crossing {
     pub area: f64,
 }
 
+impl Crossing {
+    /// The nodal values `s` interpolated to the crossing, `(1 - t) s_a + t s_b`.
+    pub fn lerp(&self, s: &[Vec3<f64>]) -> Vec3<f64> {
+        s[self.a as usize] * (1.0 - self.t) + s[self.b as usize] * self.t
+    }
+
+    /// The crossing's position under the nodal displacements `u`.
+    pub fn position(&self, grid: &Grid, u: &[Vec3<f64>]) -> Vec3<f64> {
+        let (a, b, t) = (self.a as usize, self.b as usize, self.t);
+        (grid.positions[a] + u[a]) * (1.0 - t) + (grid.positions[b] + u[b]) * t
+    }
+}
+
 impl Ground {
+    /// The signed distance of `x` from the plane, `n . x - height` (negative: inside).
+    pub fn distance(&self, x: Vec3<f64>) -> f64 {
+        self.normal.dot(x) - self.height
+    }
+
+    /// The signed distance of crossing `c` from the plane under the nodal displacements `u`.
+    pub fn crossing_distance(&self, grid: &Grid, c: &Crossing, u: &[Vec3<f64>]) -> f64 {
+        self.distance(c.position(grid, u))
+    }
+
     /// The spring constant of crossing `c`: `k`, or `k a_c` with [`ContactScheme::Penalty`].
     pub fn spring(&self, c: &Crossing) -> f64 {
         match self.scheme {
@@ -285,15 +308,14 @@ pub fn add_ground_forces(
     let fs = f.as_mut_slice();
     for c in crossings {
         let (a, b, t) = (c.a as usize, c.b as usize, c.t);
-        let x = (grid.positions[a] + us[a]) * (1.0 - t) + (grid.positions[b] + us[b]) * t;
-        let vel = vs[a] * (1.0 - t) + vs[b] * t;
-        let d = n.dot(x) - ground.height;
+        let vel = c.lerp(vs);
+        let d = ground.crossing_distance(grid, c, us);
         // the linearization point (the penalty scheme's Newton iterate; else u itself)
-        let ul = ls[a] * (1.0 - t) + ls[b] * t;
+        let ul = c.lerp(ls);
         let dl = if std::ptr::eq(ls, us) {
             d
         } else {
-            n.dot((grid.positions[a] + ls[a]) * (1.0 - t) + (grid.positions[b] + ls[b]) * t) - ground.height
+            ground.crossing_distance(grid, c, ls)
         };
         if dl < 0.0 {
             touching += 1;
@@ -312,7 +334,7 @@ pub fn add_ground_forces(
                 if slope > 0.0 {
                     stiffness.push((*c, slope));
                 }
-                let un = n.dot(us[a] * (1.0 - t) + us[b] * t);
+                let un = n.dot(c.lerp(us));
                 f_now + theta * slope * un
             }
             ContactScheme::Penalty => {
@@ -357,8 +379,8 @@ pub fn add_friction_forces(
     let fs = f.as_mut_slice();
     for c in crossings {
         let (a, b, t) = (c.a as usize, c.b as usize, c.t);
-        let uc = us[a] * (1.0 - t) + us[b] * t;
-        let d = n.dot(grid.positions[a] * (1.0 - t) + grid.positions[b] * t + uc) - ground.height;
+        let uc = c.lerp(us);
+        let d = ground.crossing_distance(grid, c, us);
         let normal_force = -ground.spring(c) * ground.law(d).0;
         if normal_force <= 0.0 {
             continue;
@@ -384,12 +406,9 @@ pub fn penalty_residual(
     x: &Matrix<Vec3<f64>>,
 ) -> f64 {
     let (ls, xs) = (at.as_slice(), x.as_slice());
-    let n = ground.normal;
     let mut worst = 0.0f64;
     for c in crossings {
-        let (a, b, t) = (c.a as usize, c.b as usize, c.t);
-        let x0 = grid.positions[a] * (1.0 - t) + grid.positions[b] * t;
-        let dist = |s: &[Vec3<f64>]| n.dot(x0 + s[a] * (1.0 - t) + s[b] * t) - ground.height;
+        let dist = |s: &[Vec3<f64>]| ground.crossing_distance(grid, c, s);
         let (dl, dx) = (dist(ls), dist(xs));
         let ((sl, sl1), (sx, _)) = (ground.law(dl), ground.law(dx));
         worst = worst.max((sx - sl - sl1 * (dx - dl)).abs());
@@ -421,9 +440,7 @@ impl GroundPush {
     pub fn add_state(&mut self, grid: &Grid, crossings: &[Crossing], ground: &Ground, u: &Field) {
         let us = u.as_slice();
         for c in crossings {
-            let (a, b, t) = (c.a as usize, c.b as usize, c.t);
-            let x = (grid.positions[a] + us[a]) * (1.0 - t) + (grid.positions[b] + us[b]) * t;
-            let d = ground.normal.dot(x) - ground.height;
+            let d = ground.crossing_distance(grid, c, us);
             let f = -ground.spring(c) * ground.law(d).0;
             if f > 0.0 && f.is_finite() {
                 self.force += f;

@@ -20,6 +20,8 @@ pub struct RunTotals {
     pub iterations: Vec<usize>,
     /// frames whose linear solve fell back to the direct solver
     pub fallbacks: usize,
+    /// frames where block-Jacobi stood in for the chosen preconditioner
+    pub substituted: usize,
     /// seconds in diffusion and advection
     pub advection_s: f64,
 }
@@ -52,6 +54,7 @@ impl ForwardRun {
         let info = sim.step().map_err(|e| at("", e))?;
         self.totals.iterations.push(info.iterations);
         self.totals.fallbacks += info.fallback as usize;
+        self.totals.substituted += info.substituted as usize;
         self.totals.info.then(info);
         sim.check_finite().map_err(|e| at("", e))?;
         let t = Instant::now();

@@ -151,6 +151,9 @@ pub struct SolveInfo {
     pub residual: f64,
     /// true when CG failed and the direct solver was used
     pub fallback: bool,
+    /// true when the chosen preconditioner (IC(0) with every shift, or the multigrid
+    /// hierarchy) could not be made from these values and block-Jacobi preconditioned CG
+    pub substituted: bool,
     /// numeric factorizations done (Cholesky or IC(0))
     pub factorizations: usize,
     /// seconds in those factorizations (and the ordering)
@@ -348,7 +351,10 @@ impl LinearSolver {
                         cg(a, b, x, &ic, &settings.cg)
                     }
                     // no shift made IC(0) exist: block-Jacobi this step
-                    None => cg(a, b, x, &BlockJacobi::new(a)?, &settings.cg),
+                    None => {
+                        info.substituted = true;
+                        cg(a, b, x, &BlockJacobi::new(a)?, &settings.cg)
+                    }
                 }
             }
             Preconditioner::RestCholesky => return self.solve_rest_cholesky(a, b, x, settings, info),
@@ -362,7 +368,11 @@ impl LinearSolver {
                         self.factorizations += 1;
                         cg(a, b, x, &mg.preconditioner(a), &settings.cg)
                     }
-                    None => cg(a, b, x, &BlockJacobi::new(a)?, &settings.cg),
+                    // the hierarchy could not be made from these values: block-Jacobi
+                    None => {
+                        info.substituted = true;
+                        cg(a, b, x, &BlockJacobi::new(a)?, &settings.cg)
+                    }
                 }
             }
         };

@@ -9,6 +9,8 @@ pub struct StepInfo {
     pub residual: f64,
     /// true when CG failed and the direct solver was used
     pub fallback: bool,
+    /// true when block-Jacobi stood in for the chosen preconditioner ([`super::SolveInfo`])
+    pub substituted: bool,
     /// numeric factorizations of the preconditioner (IC(0), Cholesky) or direct solver
     pub factorizations: usize,
     /// the part of `solve_s` spent in those factorizations
@@ -37,6 +39,7 @@ impl StepInfo {
         self.iterations += s.iterations;
         self.residual = self.residual.max(s.residual);
         self.fallback |= s.fallback;
+        self.substituted |= s.substituted;
         self.factorizations += s.factorizations;
         self.factor_s += s.factor_s;
         self.contacts = s.contacts;

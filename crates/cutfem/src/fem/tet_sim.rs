@@ -233,7 +233,7 @@ impl TetSimulation {
         for &d in &self.contact_dofs {
             let i = d as usize;
             let x = self.mesh.positions[self.mesh.free_nodes[i] as usize] + us[i];
-            let dist = n.dot(x) - ground.height;
+            let dist = ground.distance(x);
             let f_now = -ground.stiffness * softmin0(dist, ground.softness);
             let slope = ground.stiffness * softmin0_derivative(dist, ground.softness);
             if dist < 0.0 {

@@ -52,6 +52,7 @@ impl Simulation {
         info.iterations += si.iterations;
         info.residual = si.residual;
         info.fallback |= si.fallback;
+        info.substituted |= si.substituted;
         info.factorizations += si.factorizations;
         info.factor_s += si.factor_s;
         info.solve_s += t.elapsed().as_secs_f64();
