@@ -10,8 +10,9 @@
 //!
 //! For the cuboid also a gradient (forward + cost + backward, Table 5.2's problem: Young's
 //! modulus and Poisson ratio, the surface cost of 4 cameras of 32 x 32 pixels, 3 steps) per
-//! step (with the default preconditioner only). The bunny's gradient is not timed: its scene reads an SDF file, whose own spacing sets
-//! the grid of a fit (the step rows resample the file).
+//! step, with each preconditioner (the backward solves use the forward's). The bunny's gradient
+//! is not timed: its scene reads an SDF file, whose own spacing sets the grid of a fit (the step
+//! rows resample the file).
 
 use crate::progress;
 use crate::report::{col, markdown_table, Col, Fmt};
@@ -123,10 +124,13 @@ fn time_steps(
 }
 
 /// Seconds per step of the best of two gradients of Table 5.2's problem on `scene` at
-/// `resolution` (after a warm-up gradient).
-fn gradient(scene: &Scene, resolution: f64, steps: usize) -> Result<f64, String> {
+/// `resolution` with preconditioner `pre` (`None`: the scene's), after a warm-up gradient.
+fn gradient(scene: &Scene, resolution: f64, steps: usize, pre: Option<Preconditioner>) -> Result<f64, String> {
     let mut scene = scene.clone();
     scene.body.resolution = Some(resolution);
+    if let Some(p) = pre {
+        scene.numerics.preconditioner = p;
+    }
     let (obs, eyes) = crate::table_adjoint::observe(&scene, steps, 3.0)?;
     let (mut p, x) = crate::table_adjoint::problem(&scene, &obs, &eyes, steps)?;
     p.gradient(&x).map_err(|e| format!("warm-up gradient: {e}"))?;
@@ -161,7 +165,7 @@ fn body_rows(
         let mut row = time_steps(body, &scene, grid, r, steps, pre)?;
         if gradients {
             progress(&format!("scaling: {body} at {r} cells per unit, gradient"));
-            row.gradient_s = Some(gradient(&scene, r, steps)?);
+            row.gradient_s = Some(gradient(&scene, r, steps, pre)?);
         }
         rows.push(row);
     }
@@ -204,7 +208,7 @@ pub fn table(quick: bool, notes: &mut Vec<String>) -> Vec<Row> {
             "cuboid",
             "examples/scenes/cuboid_dirichlet.toml",
             cuboid,
-            false,
+            true,
             Some(Preconditioner::Multigrid),
         ),
         ("bunny", "examples/scenes/bunny_ground.toml", bunny, false, None),
@@ -280,22 +284,26 @@ mod tests {
         assert_eq!(log_slope(&pts[..1]), None);
     }
 
-    /// Two small resolutions of the cuboid: more cells, more nodes, a positive time, an
-    /// exponent.
+    /// Two small resolutions of the cuboid, with each preconditioner: more cells, more nodes, a
+    /// positive time, an exponent, a gradient with that preconditioner.
     #[test]
     fn rows_grow_with_the_resolution() {
-        let rows = body_rows(
-            "cuboid",
-            "examples/scenes/cuboid_dirichlet.toml",
-            &[6.0, 10.0],
-            1,
-            true,
-            None,
-        )
-        .unwrap();
-        assert!(rows[1].nodes > rows[0].nodes && rows[1].cells > rows[0].cells);
-        assert!(rows.iter().all(|r| r.step_s > 0.0 && r.cg_iterations > 0.0));
-        assert!(rows.iter().all(|r| r.gradient_s.is_some_and(|g| g > 0.0)));
-        assert!(rows[0].step_exponent.is_some() && rows[0].gradient_exponent.is_some());
+        for pre in [None, Some(Preconditioner::Multigrid)] {
+            let rows = body_rows(
+                "cuboid",
+                "examples/scenes/cuboid_dirichlet.toml",
+                &[6.0, 10.0],
+                1,
+                true,
+                pre,
+            )
+            .unwrap();
+            let name = pre.unwrap_or_default().name();
+            assert!(rows.iter().all(|r| r.preconditioner == name), "{pre:?}");
+            assert!(rows[1].nodes > rows[0].nodes && rows[1].cells > rows[0].cells);
+            assert!(rows.iter().all(|r| r.step_s > 0.0 && r.cg_iterations > 0.0));
+            assert!(rows.iter().all(|r| r.gradient_s.is_some_and(|g| g > 0.0)));
+            assert!(rows[0].step_exponent.is_some() && rows[0].gradient_exponent.is_some());
+        }
     }
 }
