@@ -125,7 +125,12 @@ fn time_steps(
 
 /// Seconds per step of the best of two gradients of Table 5.2's problem on `scene` at
 /// `resolution` with preconditioner `pre` (`None`: the scene's), after a warm-up gradient.
-fn gradient(scene: &Scene, resolution: f64, steps: usize, pre: Option<Preconditioner>) -> Result<f64, String> {
+fn gradient(
+    scene: &Scene,
+    resolution: f64,
+    steps: usize,
+    pre: Option<Preconditioner>,
+) -> Result<f64, String> {
     let mut scene = scene.clone();
     scene.body.resolution = Some(resolution);
     if let Some(p) = pre {
