@@ -148,13 +148,27 @@ pub fn scaling_chart(rows: &[Value]) -> Chart {
             colour += 1;
             match power_law(&pts) {
                 Some((p, line)) => {
-                    series.push(Series::new(format!("{body} {what}"), pts, c).with_style(Style::Markers));
-                    series.push(Series::new(format!("fit: nodes^{p:.2}"), line, c).with_style(Style::Dashed));
+                    // one legend entry per series: the fit's exponent in the markers' label
+                    let label = format!("{body} {what}: nodes^{p:.2}");
+                    series.push(Series::new(label, pts, c).with_style(Style::Markers));
+                    series.push(Series::new(String::new(), line, c).with_style(Style::Dashed));
                 }
                 None => series.push(Series::new(format!("{body} {what}"), pts, c).with_style(Style::Markers)),
             }
         }
     }
+    // room above the data for the legend: its share of the plot's height (about 20 pixels an
+    // entry of about 400) left free at the top of the log axis
+    let ys = series.iter().flat_map(|s| s.points.iter().map(|p| p.1));
+    let (lo, hi) = ys
+        .filter(|y| *y > 0.0)
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), y| (lo.min(y), hi.max(y)));
+    let entries = series.iter().filter(|s| !s.label.is_empty()).count();
+    let free = ((entries as f64 * 20.0 + 16.0) / 400.0).min(0.6);
+    let y_range = (hi > 0.0).then(|| {
+        let lo = lo / 1.5;
+        (lo, lo * (hi / lo).powf(1.0 / (1.0 - free)))
+    });
     Chart {
         title: "scaling: time per step against active nodes (dashed: power-law fit)".into(),
         x_label: "active nodes".into(),
@@ -162,8 +176,9 @@ pub fn scaling_chart(rows: &[Value]) -> Chart {
         log_x: true,
         log_y: true,
         series,
+        y_range,
         width: 760,
-        height: 480,
+        height: 520,
         ..Chart::default()
     }
 }

@@ -267,8 +267,8 @@ pub fn markdown(rows: &[serde_json::Value]) -> String {
          preconditioner (V(3,3) cycle, Chebyshev smoothing, Galerkin coarse levels); seconds per \
          step averaged over 3 steps after one untimed step; set-up: the preconditioner's \
          factorization or refresh, within the solve; gradient: forward + cost + backward per step \
-         of Table 5.2's problem (E and nu, 4 cameras of 32 x 32 pixels, 3 steps; the cuboid with \
-         the default preconditioner only). p: least-squares slope of ln(time) (and ln(CG \
+         of Table 5.2's problem (E and nu, 4 cameras of 32 x 32 pixels, 3 steps; the cuboid only, with \
+         each preconditioner). p: least-squares slope of ln(time) (and ln(CG \
          iterations)) against ln(nodes) over the rows of one body and preconditioner.",
         rows,
         &columns(),
