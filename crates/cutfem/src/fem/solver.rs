@@ -214,20 +214,19 @@ pub const MIN_SOLVES_AHEAD: usize = 3;
 /// The most entries of a factor made for a repeated matrix (8 bytes each: 200 MB).
 pub const MAX_REUSED_FACTOR: usize = 25_000_000;
 
-/// A 64-bit fingerprint of a matrix: its pattern's shape and every value's bits.
+/// A 64-bit fingerprint of a matrix: its pattern's shape and every value's bits (three
+/// independent lanes, one per row of each block, so that the multiplications overlap).
 fn fingerprint(a: &SparseMatrix<Mat3<f64>>) -> u64 {
     const K: u64 = 0x9E37_79B9_7F4A_7C15;
     let mix = |h: u64, w: u64| (h ^ w).wrapping_mul(K).rotate_left(29);
     let p = a.pattern();
-    let mut h = mix(mix(0, p.rows() as u64), p.nnz() as u64);
+    let mut lanes = [mix(0, p.rows() as u64), mix(0, p.nnz() as u64), mix(1, 1)];
     for m in a.values() {
-        for r in &m.m {
-            for v in r {
-                h = mix(h, v.to_bits());
-            }
+        for (h, r) in lanes.iter_mut().zip(&m.m) {
+            *h = mix(mix(mix(*h, r[0].to_bits()), r[1].to_bits()), r[2].to_bits());
         }
     }
-    h
+    mix(mix(lanes[0], lanes[1]), lanes[2])
 }
 
 impl LinearSolver {

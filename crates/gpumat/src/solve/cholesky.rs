@@ -38,6 +38,9 @@ pub struct SparseCholesky<M: BlockScalar> {
     _m: std::marker::PhantomData<M>,
 }
 
+/// Factors with fewer entries than this are computed on one thread ([`SparseCholesky::refactor`]).
+pub const PARALLEL_FACTOR_ENTRIES: usize = 10_000_000;
+
 impl<M: BlockScalar> SparseCholesky<M> {
     /// Analyses the pattern (AMD ordering) and factors every batch of `a`.
     pub fn new(a: &SparseMatrix<M>) -> Result<Self, Error> {
@@ -103,7 +106,16 @@ impl<M: BlockScalar> SparseCholesky<M> {
             self.pattern.same_as(a.pattern()),
             "gpumat::SparseCholesky::refactor: the matrix has another pattern"
         );
-        let par = faer::get_global_parallelism();
+        // faer's parallel supernodal factorization only pays off on large factors: on the
+        // 2-core Xeon a 27-point 3x3-block matrix factored 2.3x faster sequentially at 3e5
+        // factor entries, 1.55x at 2e6, 1.08x at 8e6, and 1.14x slower at 2.3e7 (the
+        // `chol_par` measurement of 2026-12-06); its idle workers' spinning also takes the
+        // cores from other work
+        let par = if self.symbolic.len_val() < PARALLEL_FACTOR_ENTRIES {
+            Par::Seq
+        } else {
+            faer::get_global_parallelism()
+        };
         let mut buf = MemBuffer::try_new(
             self.symbolic
                 .factorize_numeric_llt_scratch::<f64>(par, Default::default()),

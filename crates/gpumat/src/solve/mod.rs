@@ -13,7 +13,7 @@ mod precond;
 mod tree_solve;
 
 pub use cg::{cg, run_cg, CgError, CgInfo, CgOps, CgParams, CgState};
-pub use cholesky::SparseCholesky;
+pub use cholesky::{SparseCholesky, PARALLEL_FACTOR_ENTRIES};
 pub use dense::{invert_small, SmallCholesky};
 pub use ic0::{BlockIc0, Ic0Params};
 pub use multigrid::{lattice_prolongations, Multigrid, MultigridCycle, MultigridParams, Smoother};
