@@ -48,14 +48,7 @@ fn trajectory(model: Model) -> Vec<Matrix<Vec3<f64>>> {
 
 /// The displacement of frames `0..=n` (each `model.substeps` steps).
 fn frames(model: Model, n: usize) -> Vec<Matrix<Vec3<f64>>> {
-    let mut sim = Simulation::new(grid(), model).unwrap();
-    sim.solver.direct = true;
-    let mut out = vec![sim.u.clone()];
-    for _ in 0..n {
-        sim.step().unwrap();
-        out.push(sim.u.clone());
-    }
-    out
+    common::direct_frames(grid(), model, n)
 }
 
 fn all_params() -> ParamSet {

@@ -30,14 +30,7 @@ fn start() -> Model {
 
 /// Frames `0..=STEPS` of the every-effect truth (direct solves).
 fn reference() -> Vec<Matrix<Vec3<f64>>> {
-    let mut sim = Simulation::new(grid(), common::every_effect()).unwrap();
-    sim.solver.direct = true;
-    let mut out = vec![sim.u.clone()];
-    for _ in 0..STEPS {
-        sim.step().unwrap();
-        out.push(sim.u.clone());
-    }
-    out
+    common::direct_frames(grid(), common::every_effect(), STEPS)
 }
 
 /// Cost and gradient of the start model against `reference` with `solver`.

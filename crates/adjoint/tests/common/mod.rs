@@ -8,7 +8,7 @@ use adjoint::problem::Problem;
 use cutfem::fem::collision::{ContactScheme, Ground};
 use cutfem::fem::{Aabb, Grid, Model, Simulation};
 use cutfem::shapes::Shape;
-use gpumat::Vec3;
+use gpumat::{Matrix, Vec3};
 
 /// Integrator steps of the problems of [`problem`].
 pub const STEPS: usize = 8;
@@ -53,19 +53,26 @@ pub fn every_effect() -> Model {
 /// The displacement cost of `truth` on [`bar_grid`]`(10)` at every second of [`STEPS`] steps,
 /// and the problem of fitting `params` from `start` (direct solves).
 pub fn problem(truth: Model, start: Model, params: &str) -> Problem {
-    let mut sim = Simulation::new(bar_grid(10.0), truth).unwrap();
-    sim.solver.direct = true;
-    let mut out = vec![sim.u.clone()];
-    for _ in 0..STEPS {
-        sim.step().unwrap();
-        out.push(sim.u.clone());
-    }
+    let out = direct_frames(bar_grid(10.0), truth, STEPS);
     let cost = DisplacementCost {
         reference: (2..=STEPS).step_by(2).map(|t| (t, 1.0, out[t].clone())).collect(),
     };
     let mut sim = Simulation::new(bar_grid(10.0), start).unwrap();
     sim.solver.direct = true;
     Problem::new(sim, ParamSet::parse(&[params]).unwrap(), Box::new(cost), STEPS).unwrap()
+}
+
+/// The displacements of frames `0..=n` (each `model.substeps` steps) of `model` on `grid`,
+/// with direct solves.
+pub fn direct_frames(grid: Grid, model: Model, n: usize) -> Vec<Matrix<Vec3<f64>>> {
+    let mut sim = Simulation::new(grid, model).unwrap();
+    sim.solver.direct = true;
+    let mut out = vec![sim.u.clone()];
+    for _ in 0..n {
+        sim.step().unwrap();
+        out.push(sim.u.clone());
+    }
+    out
 }
 
 /// The momentum `sum_i m_i v_i` of `s`.
