@@ -1,12 +1,13 @@
 //! Sequential against parallel (faer's rayon) numeric Cholesky factorization of 3D 27-point
 //! 3x3-block matrices (a grid's elasticity pattern) of growing size: the measurement behind
-//! `gpumat::solve::PARALLEL_FACTOR_ENTRIES`. Run with
+//! `gpumat::solve::PARALLEL_FACTOR_ENTRIES`, and whether the two give the same solution bits
+//! (they did at every size measured: the threshold changes no result). Run with
 //! `cargo run --release -p gpumat --example chol_par`.
 
 use gpumat::{solve::SparseCholesky, Mat3, SparseMatrix};
 use std::time::Instant;
 fn main() {
-    for n in [8usize, 12, 16, 20, 26, 32] {
+    for n in [8usize, 12, 16, 20, 26] {
         let idx = |i: usize, j: usize, k: usize| i + n * (j + n * k);
         let mut t = Vec::new();
         for k in 0..n {
@@ -38,23 +39,28 @@ fn main() {
         let rows = n * n * n;
         let a = SparseMatrix::from_triplets(rows, rows, &t);
         let mut c = SparseCholesky::analyse(&a, None).unwrap();
-        let mut res = Vec::new();
-        for par in [faer::Par::Seq, faer::Par::rayon(0)] {
-            faer::set_global_parallelism(par);
-            c.refactor(&a).unwrap();
+        let (mut res, mut sols) = (Vec::new(), Vec::new());
+        for parallel in [false, true] {
+            c.refactor_on(&a, parallel).unwrap();
             let mut best = f64::INFINITY;
             for _ in 0..5 {
                 let s = Instant::now();
-                c.refactor(&a).unwrap();
+                c.refactor_on(&a, parallel).unwrap();
                 best = best.min(s.elapsed().as_secs_f64());
             }
             res.push(best);
+            let mut x = gpumat::Matrix::from_fn(rows, 1, 1, |r, _, _| {
+                gpumat::Vec3::new((r as f64).sin(), 1.0, (0.3 * r as f64).cos())
+            });
+            c.solve_in_place(&mut x);
+            sols.push(x);
         }
         println!(
-            "nodes {rows} factor entries {} seq {:.3} ms rayon {:.3} ms",
+            "nodes {rows} factor entries {} seq {:.3} ms rayon {:.3} ms, same solution bits: {}",
             c.factor_nnz(),
             res[0] * 1e3,
-            res[1] * 1e3
+            res[1] * 1e3,
+            sols[0].as_slice() == sols[1].as_slice()
         );
     }
 }

@@ -102,19 +102,26 @@ impl<M: BlockScalar> SparseCholesky<M> {
     /// analysis and ordering are kept).
     #[track_caller]
     pub fn refactor(&mut self, a: &SparseMatrix<M>) -> Result<(), Error> {
+        // faer's parallel supernodal factorization only pays off on large factors: on the
+        // 2-core Xeon a 27-point 3x3-block matrix factored 2.3x faster sequentially at 3e5
+        // factor entries, 1.55x at 2e6, 1.08x at 8e6, and 1.14x slower at 2.3e7 (the
+        // `chol_par` example, 2026-12-06); its idle workers' spinning also takes the cores
+        // from other work
+        self.refactor_on(a, self.symbolic.len_val() >= PARALLEL_FACTOR_ENTRIES)
+    }
+
+    /// [`SparseCholesky::refactor`] on faer's global parallelism (`parallel`, rayon's pool by
+    /// default) or on one thread, whatever the factor's size.
+    #[track_caller]
+    pub fn refactor_on(&mut self, a: &SparseMatrix<M>, parallel: bool) -> Result<(), Error> {
         assert!(
             self.pattern.same_as(a.pattern()),
             "gpumat::SparseCholesky::refactor: the matrix has another pattern"
         );
-        // faer's parallel supernodal factorization only pays off on large factors: on the
-        // 2-core Xeon a 27-point 3x3-block matrix factored 2.3x faster sequentially at 3e5
-        // factor entries, 1.55x at 2e6, 1.08x at 8e6, and 1.14x slower at 2.3e7 (the
-        // `chol_par` measurement of 2026-12-06); its idle workers' spinning also takes the
-        // cores from other work
-        let par = if self.symbolic.len_val() < PARALLEL_FACTOR_ENTRIES {
-            Par::Seq
-        } else {
+        let par = if parallel {
             faer::get_global_parallelism()
+        } else {
+            Par::Seq
         };
         let mut buf = MemBuffer::try_new(
             self.symbolic
