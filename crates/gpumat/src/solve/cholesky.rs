@@ -352,6 +352,26 @@ mod tests {
         assert!(one.iter().zip(&four).all(|(p, q)| p.to_bits() == q.to_bits()));
     }
 
+    /// The numeric factor has the same bits on one thread and on faer's parallel path in a
+    /// pool of 4 threads ([`SparseCholesky::refactor_on`]), so the size threshold of
+    /// [`SparseCholesky::refactor`] changes no result.
+    #[test]
+    fn factor_bits_do_not_depend_on_the_threads() {
+        let (a, coords) = grid(28);
+        let order = super::super::nested_dissection(a.pattern(), &coords);
+        let mut chol = SparseCholesky::with_ordering(&a, Some(&order)).unwrap();
+        chol.refactor_on(&a, false).unwrap();
+        let one = chol.factors.clone();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
+        pool.install(|| chol.refactor_on(&a, true)).unwrap();
+        assert_eq!(one.len(), chol.factors.len());
+        let same = one[0]
+            .iter()
+            .zip(&chol.factors[0])
+            .all(|(p, q)| p.to_bits() == q.to_bits());
+        assert!(same, "factor of {} entries differs", chol.factor_nnz());
+    }
+
     /// A banded matrix in its natural order: the elimination tree is one long chain of
     /// supernodes, most with subtrees above the parallel threshold. The solve walks it in a
     /// loop, not by recursion: it runs on a thread with a 128 KiB stack.
