@@ -313,16 +313,7 @@ fn stiffness_field_gradient_matches_finite_differences() {
         .collect();
     let mut truth_model = truth();
     truth_model.stiffness_scale = Some(basis.scales(&c_true).into());
-    let reference = {
-        let mut sim = Simulation::new(grid(), truth_model).unwrap();
-        sim.solver.direct = true;
-        let mut out = vec![sim.u.clone()];
-        for _ in 0..STEPS {
-            sim.step().unwrap();
-            out.push(sim.u.clone());
-        }
-        out
-    };
+    let reference = trajectory(truth_model);
     let cost = DisplacementCost {
         reference: (2..=STEPS)
             .step_by(2)
@@ -450,16 +441,7 @@ fn with_external_force(mut m: Model, coefficients: [f64; 4]) -> Model {
 #[test]
 fn external_force_gradient_matches_finite_differences() {
     let truth_model = with_external_force(truth(), [0.5, -1.0, 0.3, 0.4]);
-    let reference = {
-        let mut sim = Simulation::new(grid(), truth_model).unwrap();
-        sim.solver.direct = true;
-        let mut out = vec![sim.u.clone()];
-        for _ in 0..STEPS {
-            sim.step().unwrap();
-            out.push(sim.u.clone());
-        }
-        out
-    };
+    let reference = trajectory(truth_model);
     let cost = DisplacementCost {
         reference: (2..=STEPS)
             .step_by(2)
@@ -489,16 +471,7 @@ fn external_force_gradient_matches_finite_differences() {
 #[test]
 fn gauss_newton_matrix_with_external_force_is_the_hessian_at_zero_residual() {
     let truth_model = with_external_force(truth(), [0.5, -1.0, 0.3, 0.4]);
-    let reference = {
-        let mut sim = Simulation::new(grid(), truth_model.clone()).unwrap();
-        sim.solver.direct = true;
-        let mut out = vec![sim.u.clone()];
-        for _ in 0..STEPS {
-            sim.step().unwrap();
-            out.push(sim.u.clone());
-        }
-        out
-    };
+    let reference = trajectory(truth_model.clone());
     let cost = DisplacementCost {
         reference: (2..=STEPS)
             .step_by(2)
