@@ -347,6 +347,15 @@ impl Scene {
         self.set_extension(name, t);
     }
 
+    /// The files the scene reads: the scene file itself and its body file (`sdf` or `mesh`,
+    /// resolved). A command's outputs must not replace them.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let body = [&self.body.sdf, &self.body.mesh];
+        std::iter::once(self.path.clone())
+            .chain(body.into_iter().flatten().map(|p| self.resolve(p)))
+            .collect()
+    }
+
     /// Resolves a path given in the scene.
     pub fn resolve(&self, p: &Path) -> PathBuf {
         if p.is_absolute() {

@@ -129,7 +129,8 @@ fn table(
 pub fn run(a: Args) -> Result<(), String> {
     let t0 = Instant::now();
     let target = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join("demo"));
-    let dir = crate::out_dir::OutDir::begin(&target)?;
+    // the demo reads no file
+    let dir = crate::out_dir::OutDir::begin(&target, &[])?;
     let out = dir.path().to_path_buf();
     let say = |s: String| {
         if !a.json {

@@ -294,7 +294,7 @@ pub fn run(args: Args) -> Result<(), String> {
         .out
         .clone()
         .unwrap_or_else(|| crate::simulate::default_out(&args.problem.scene, "diagnose"));
-    let out = crate::out_dir::OutDir::begin(&target)?;
+    let out = crate::out_dir::OutDir::begin(&target, &ready.loaded.inputs)?;
     let (d, summary) = diagnose_ready(ready, &args, &args.problem.scene, &out)?;
     out.commit()?;
     if args.json {

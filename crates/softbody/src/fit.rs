@@ -190,6 +190,7 @@ pub fn run(args: Args) -> Result<(), String> {
         observations: obs,
         eyes,
         cameras: camera_file,
+        inputs,
     } = args.problem.load()?;
     let settings = Settings::new(&args, &section)?;
     if obs.is_empty() {
@@ -202,7 +203,7 @@ pub fn run(args: Args) -> Result<(), String> {
         .out
         .clone()
         .unwrap_or_else(|| crate::simulate::default_out(&args.problem.scene, "fit"));
-    let dir = crate::out_dir::OutDir::begin(&target)?;
+    let dir = crate::out_dir::OutDir::begin(&target, &inputs)?;
     let out = dir.path().to_path_buf();
 
     let mut problem = scene_problem(

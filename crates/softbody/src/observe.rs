@@ -266,7 +266,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let cams_path = adjoint::fit::cameras_path(&out);
     let mut targets = vec![out.clone(), cams_path.clone()];
     targets.extend(a.preview.clone());
-    let files = crate::out_dir::OutFiles::begin(&targets)?;
+    let files = crate::out_dir::OutFiles::begin(&targets, &scene.input_files())?;
 
     // the scene's model with its model-level effects (e.g. `wind`)
     let mut sim = scene.build_simulation().map_err(|e| e.to_string())?;

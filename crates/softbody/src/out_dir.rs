@@ -17,6 +17,8 @@
 //! - A folder is only replaced when it is empty or was written by softbody (it holds
 //!   [`MARKER`] or a report file of a command): `--out .` or a folder of other files is refused
 //!   rather than deleted.
+//! - No output replaces the run's own inputs ([`refuse_inputs`]): a target that is an input
+//!   file (through any link), or a folder that holds one, is refused before anything is written.
 //!
 //! A run that is killed leaves its `DIR.tmp-<pid>` behind; the next run into `DIR` that
 //! succeeds removes it, and `fit --resume` reads its `fit.log` ([`OutDir::resume_file`]), so an
@@ -80,7 +82,7 @@ impl Lock {
                 .create(true)
                 .truncate(false)
                 .open(&path)
-                .map_err(|e| err(&path, e))?;
+                .map_err(|e| err(target, e))?;
             match file.try_lock() {
                 Ok(()) => {}
                 Err(TryLockError::WouldBlock) => {
@@ -151,14 +153,16 @@ pub struct OutDir {
 
 impl OutDir {
     /// Locks `target` and creates its temporary folder; fails when `target` is in use, is not
-    /// a folder, or is a folder of files softbody did not write.
-    pub fn begin(target: &Path) -> Result<OutDir, String> {
+    /// a folder, is a folder of files softbody did not write, or holds one of the run's
+    /// `inputs`.
+    pub fn begin(target: &Path, inputs: &[PathBuf]) -> Result<OutDir, String> {
         if target.as_os_str().is_empty() || target.file_name().is_none() {
             return Err(format!(
                 "--out {}: name a folder (not `.`, `..` or `/`)",
                 target.display()
             ));
         }
+        refuse_inputs(target, inputs)?;
         if let Some(parent) = target.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent).map_err(|e| err(parent, e))?;
         }
@@ -271,6 +275,51 @@ impl Drop for OutDir {
     }
 }
 
+/// Refuses an output `target` that would replace one of the run's `inputs` (the scene, its
+/// body file, the observations, a camera file): the same file (by path after links, or by
+/// inode: a hard link), or a folder that holds one (a report folder is replaced as a whole).
+/// A target that does not exist yet holds nothing.
+pub fn refuse_inputs(target: &Path, inputs: &[PathBuf]) -> Result<(), String> {
+    let Ok(t) = std::fs::canonicalize(target) else {
+        return Ok(());
+    };
+    for input in inputs {
+        let Ok(i) = std::fs::canonicalize(input) else {
+            continue;
+        };
+        if i == t || same_inode(&i, &t) {
+            return Err(format!(
+                "{}: is an input of this run ({}); choose another output",
+                target.display(),
+                input.display()
+            ));
+        }
+        if t.is_dir() && i.starts_with(&t) {
+            return Err(format!(
+                "{}: the folder holds an input of this run ({}) and a run replaces the whole \
+                 folder; choose another --out",
+                target.display(),
+                input.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn same_inode(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(a), Ok(b)) => a.is_file() && a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn same_inode(_: &Path, _: &Path) -> bool {
+    false
+}
+
 /// Refuses a target that is not a folder or is a non-empty folder softbody did not write.
 fn check_replaceable(target: &Path) -> Result<(), String> {
     let Ok(meta) = std::fs::symlink_metadata(target) else {
@@ -339,9 +388,13 @@ pub struct OutFiles {
 
 impl OutFiles {
     /// Locks `targets[0]` and checks that every target can be replaced by a file (it is not a
-    /// folder, its folder exists or can be made, a file can be created there).
-    pub fn begin(targets: &[PathBuf]) -> Result<OutFiles, String> {
+    /// folder or one of the run's `inputs`, its folder exists or can be made, a file can be
+    /// created there).
+    pub fn begin(targets: &[PathBuf], inputs: &[PathBuf]) -> Result<OutFiles, String> {
         let first = targets.first().ok_or("no output file")?;
+        for t in targets {
+            refuse_inputs(t, inputs)?;
+        }
         for t in targets {
             if let Some(dir) = t.parent().filter(|d| !d.as_os_str().is_empty()) {
                 std::fs::create_dir_all(dir).map_err(|e| err(dir, e))?;
@@ -449,8 +502,8 @@ mod tests {
         let d = scratch("files");
         let (a, b) = (d.join("a.csv"), d.join("a.cameras.json"));
         std::fs::write(&a, "old a").unwrap();
-        let files = OutFiles::begin(&[a.clone(), b.clone()]).unwrap();
-        assert!(OutFiles::begin(std::slice::from_ref(&a))
+        let files = OutFiles::begin(&[a.clone(), b.clone()], &[]).unwrap();
+        assert!(OutFiles::begin(std::slice::from_ref(&a), &[])
             .unwrap_err()
             .contains("is in use by process"));
         std::fs::write(files.path(&a), "new a").unwrap();
@@ -469,21 +522,52 @@ mod tests {
     }
 
     #[test]
+    fn no_output_replaces_an_input() {
+        let d = scratch("inputs");
+        let scene = d.join("s.toml");
+        std::fs::write(&scene, "scene").unwrap();
+        let inputs = [scene.clone()];
+        // the same file, by its own path, another spelling, a symbolic and a hard link
+        let other = d.join(".").join("s.toml");
+        let soft = d.join("soft.toml");
+        let hard = d.join("hard.toml");
+        std::os::unix::fs::symlink(&scene, &soft).unwrap();
+        std::fs::hard_link(&scene, &hard).unwrap();
+        for t in [&scene, &other, &soft, &hard] {
+            let e = OutFiles::begin(std::slice::from_ref(t), &inputs).unwrap_err();
+            assert!(e.contains("is an input of this run"), "{e}");
+        }
+        // a report folder that holds an input (here: one written by softbody before)
+        let out = d.join("out");
+        std::fs::create_dir(&out).unwrap();
+        std::fs::write(out.join(MARKER), "").unwrap();
+        let obs = out.join("obs.csv");
+        std::fs::write(&obs, "frame,x,y,z\n").unwrap();
+        let e = OutDir::begin(&out, &[scene.clone(), obs.clone()]).unwrap_err();
+        assert!(e.contains("holds an input of this run"), "{e}");
+        assert!(OutDir::begin(&out, &[scene.clone()]).is_ok());
+        assert_eq!(std::fs::read_to_string(&scene).unwrap(), "scene");
+        assert_eq!(std::fs::read_to_string(&obs).unwrap(), "frame,x,y,z\n");
+        // a new target holds nothing
+        assert!(OutFiles::begin(&[d.join("new.csv")], &inputs).is_ok());
+    }
+
+    #[test]
     fn a_dropped_dir_leaves_the_earlier_one_and_a_commit_replaces_it() {
         let d = scratch("dir");
         let t = d.join("out");
-        let o = OutDir::begin(&t).unwrap();
+        let o = OutDir::begin(&t, &[]).unwrap();
         std::fs::write(o.path().join("summary.json"), "1").unwrap();
         let mut v = serde_json::json!({"f": o.path().join("x.png"), "n": [o.path()]});
         o.publish(&mut v);
         assert_eq!(v["f"], t.join("x.png").to_str().unwrap());
         assert_eq!(v["n"][0], t.to_str().unwrap());
         o.commit().unwrap();
-        let o = OutDir::begin(&t).unwrap();
+        let o = OutDir::begin(&t, &[]).unwrap();
         std::fs::write(o.path().join("summary.json"), "2").unwrap();
         drop(o);
         assert_eq!(std::fs::read_to_string(t.join("summary.json")).unwrap(), "1");
-        let o = OutDir::begin(&t).unwrap();
+        let o = OutDir::begin(&t, &[]).unwrap();
         std::fs::write(o.path().join("other.json"), "3").unwrap();
         o.commit().unwrap();
         assert!(

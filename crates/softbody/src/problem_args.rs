@@ -51,6 +51,9 @@ pub struct Loaded {
     /// the camera file (`--cameras`, else OBS.cameras.json when it exists), checked against
     /// the observations
     pub cameras: Option<CameraFile>,
+    /// the files read (scene, body file, observations, camera file): no output may replace
+    /// them (`crate::out_dir::refuse_inputs`)
+    pub inputs: Vec<std::path::PathBuf>,
 }
 
 impl ProblemArgs {
@@ -79,6 +82,7 @@ impl ProblemArgs {
             Some(p) => Some(p.clone()),
             None => Some(cameras_path(obs_path)).filter(|p| p.exists()),
         };
+        let camera_path = path.clone();
         let cameras = match path {
             Some(p) => {
                 let file = CameraFile::read(&p)?;
@@ -88,7 +92,11 @@ impl ProblemArgs {
             None => None,
         };
         let eyes = cameras.as_ref().map_or_else(Vec::new, CameraFile::eyes);
+        let mut inputs = scene.input_files();
+        inputs.push(obs_path.to_path_buf());
+        inputs.extend(camera_path);
         Ok(Loaded {
+            inputs,
             scene,
             section,
             params,

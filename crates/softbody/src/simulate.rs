@@ -131,7 +131,7 @@ pub fn run(a: Args) -> Result<(), String> {
         ));
     }
     let target = a.out.clone().unwrap_or_else(|| default_out(&a.scene, "simulate"));
-    let dir = crate::out_dir::OutDir::begin(&target)?;
+    let dir = crate::out_dir::OutDir::begin(&target, &scene.input_files())?;
     let out = dir.path().to_path_buf();
     let frames_dir = out.join("frames");
     std::fs::create_dir_all(&frames_dir).map_err(|e| format!("{}: {e}", frames_dir.display()))?;

@@ -29,11 +29,11 @@ pub fn run(args: &Args) -> Result<(), String> {
         .out
         .clone()
         .unwrap_or_else(|| crate::simulate::default_out(&p.scene, "diagnose"));
-    let out = crate::out_dir::OutDir::begin(&target)?;
+    let out = crate::out_dir::OutDir::begin(&target, &crate::study_fit::study_inputs(&study))?;
     let mut rows = Vec::with_capacity(ready.len());
     for (rec, r) in study.recordings.iter().zip(ready) {
         let at = |e: String| format!("recording `{}`: {e}", rec.name);
-        let sub = crate::out_dir::OutDir::begin(&out.path().join(&rec.name)).map_err(at)?;
+        let sub = crate::out_dir::OutDir::begin(&out.path().join(&rec.name), &[]).map_err(at)?;
         let (d, _) = diagnose_ready(r, args, &rec.scene, &sub).map_err(at)?;
         sub.commit().map_err(at)?;
         if !args.json {

@@ -23,7 +23,7 @@ use adjoint::study::{Recording, Study};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::ops::ControlFlow;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::rc::Rc;
 use std::time::Instant;
 
@@ -131,6 +131,27 @@ pub fn run_scene(args: &Args) -> Result<(), String> {
         }],
     };
     fit_study(args, &study)
+}
+
+/// The files a study reads: the study file, and per recording its scene with the scene's body
+/// file, its observations and camera file (`--cameras`, else the one beside the observations):
+/// no output may replace them (`crate::out_dir::refuse_inputs`). A scene that does not load
+/// adds only its own path (its error comes from the run).
+pub fn study_inputs(study: &Study) -> Vec<PathBuf> {
+    let mut inputs = vec![study.path.clone()];
+    for rec in &study.recordings {
+        match cutfem::scene::Scene::load(&rec.scene) {
+            Ok(scene) => inputs.extend(scene.input_files()),
+            Err(_) => inputs.push(rec.scene.clone()),
+        }
+        inputs.push(rec.observations.clone());
+        inputs.push(
+            rec.cameras
+                .clone()
+                .unwrap_or_else(|| adjoint::fit::cameras_path(&rec.observations)),
+        );
+    }
+    inputs
 }
 
 /// The recordings' problems joined; when `check`, each recording's observed frames are
@@ -325,7 +346,8 @@ fn fit_study_on(args: &Args, study: &Study, ensemble: Option<Rc<dyn Ensemble>>) 
     // only the lead writes; a folder it cannot make stops every rank
     let dir = agreed(
         &ensemble,
-        lead.then(|| crate::out_dir::OutDir::begin(&target)).transpose(),
+        lead.then(|| crate::out_dir::OutDir::begin(&target, &study_inputs(study)))
+            .transpose(),
     )?;
 
     let bar = progress::bar(((iterations + 1) * k) as u64, "fit", args.json || !lead);
