@@ -210,8 +210,25 @@ pub struct ModelSection {
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct StiffnessFieldSection {
-    /// coarse cells per axis
+    /// coarse cells per axis, each in `1..=`[`StiffnessFieldSection::MAX_CELLS`]
     pub cells: [usize; 3],
+}
+
+impl StiffnessFieldSection {
+    /// The most coarse cells per axis: 65^3 = 274 625 coefficients, more than any grid's cells
+    /// at the resolutions that run.
+    pub const MAX_CELLS: usize = 64;
+
+    /// Errors (naming the key) unless every axis has `1..=MAX_CELLS` cells.
+    pub fn check(cells: [usize; 3]) -> Result<(), String> {
+        if cells.iter().any(|&c| c == 0 || c > Self::MAX_CELLS) {
+            return Err(format!(
+                "model.stiffness_field.cells: each must lie in 1..={}, got {cells:?}",
+                Self::MAX_CELLS
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// A parsed scene file. Its top-level keys are checked by [`Scene::parse`]: the core sections

@@ -22,11 +22,7 @@ pub struct FieldBasis {
 impl FieldBasis {
     /// The basis with `cells` coarse cells per axis over `grid`'s active cells.
     pub fn new(grid: &cutfem::fem::Grid, cells: [usize; 3]) -> Result<Self, Error> {
-        if cells.iter().any(|&c| c == 0 || c > 64) {
-            return Err(Error::Invalid(format!(
-                "model.stiffness_field.cells: each must lie in 1..=64, got {cells:?}"
-            )));
-        }
+        cutfem::scene::StiffnessFieldSection::check(cells).map_err(Error::Invalid)?;
         let h = grid.h();
         let centers: Vec<[f64; 3]> = grid
             .cells

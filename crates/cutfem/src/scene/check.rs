@@ -1,7 +1,9 @@
 //! The checks of a parsed scene that do not fit a type: every float key finite (one place for
 //! all of them, extensions' sections included, naming the key and its line), step counts
 //! within what a run can hold ([`MAX_STEPS`]), the body given once, the model's effects backed
-//! by their sections, and the model's own ranges ([`crate::fem::Model::validate`]).
+//! by their sections, the stiffness field's coarse cells
+//! ([`super::StiffnessFieldSection::check`]), and the model's own ranges
+//! ([`crate::fem::Model::validate`]).
 
 use super::Scene;
 use crate::error::Error;
@@ -179,6 +181,9 @@ impl Scene {
                 }
             }
         }
+        if let Some(f) = self.model.as_ref().and_then(|m| m.stiffness_field.as_ref()) {
+            super::StiffnessFieldSection::check(f.cells).map_err(|e| Error::format(path, e))?;
+        }
         self.numerics
             .nitsche_penalty()
             .map_err(|e| Error::format(path, e))?;
@@ -292,6 +297,26 @@ mod tests {
         ] {
             let e = scene(time).unwrap_err().to_string();
             assert!(e.starts_with(says), "{time}: {e}");
+        }
+    }
+
+    /// Every command refuses a stiffness field without coarse cells on some axis, or with
+    /// more than it can hold, naming the file and the key (`simulate` ran such a scene before).
+    #[test]
+    fn stiffness_field_cells_are_checked_on_load() {
+        let scene = |cells: &str| {
+            let text = format!(
+                "[body]\nshape = {{ kind = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.3 }}\n[material]\nyoung = 1000.0\npoisson = 0.3\n[model]\neffects = [\"stiffness_field\"]\nstiffness_field = {{ cells = {cells} }}\n"
+            );
+            Scene::parse(&text, Path::new("s.toml"))
+        };
+        assert!(scene("[1, 4, 64]").is_ok());
+        for cells in ["[0, 4, 4]", "[4, 65, 4]", "[100000, 100000, 100000]"] {
+            let e = scene(cells).unwrap_err().to_string();
+            assert!(
+                e.starts_with("s.toml: model.stiffness_field.cells: each must lie in 1..=64"),
+                "{cells}: {e}"
+            );
         }
     }
 }

@@ -51,12 +51,14 @@ impl SdfGrid {
                 "size must be positive in x, y and z, found {size:?}"
             )));
         }
-        let count: u64 = size.iter().map(|&s| s as u64).product();
-        if count > 1u64 << 31 {
+        // in u128: three positive i32 cannot overflow it (a u64 product wraps at 2^64)
+        let count: u128 = size.iter().map(|&s| s as u128).product();
+        if count > 1u128 << 31 {
             return Err(bad(format!(
                 "absurd size {size:?}: {count} nodes (more than 2^31); not an .sdf file?"
             )));
         }
+        let count = count as u64;
         let expected = HEADER as u64 + 4 * count;
         let mismatch = |found: u64| {
             let what = if found < expected {
@@ -161,5 +163,31 @@ impl SdfGrid {
             out.extend_from_slice(&((v * resolution) as f32).to_le_bytes());
         }
         std::fs::write(path, out).map_err(|e| Error::io(path, e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A header whose node count overflows 64 bits (2^30 per axis is 2^90 nodes) is refused as
+    /// absurd, not wrapped to a small count and misread as a file with trailing data.
+    #[test]
+    fn node_counts_beyond_64_bits_are_absurd() {
+        let dir = std::env::temp_dir().join(format!("cutfem-thesis-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (size, name) in [([1 << 30; 3], "a.sdf"), ([i32::MAX, i32::MAX, 2], "b.sdf")] {
+            let mut bytes: Vec<u8> = [5i32, 0, 0, 0]
+                .iter()
+                .chain(&size)
+                .flat_map(|v| v.to_le_bytes())
+                .collect();
+            bytes.extend([0u8; 64]);
+            let path = dir.join(name);
+            std::fs::write(&path, bytes).unwrap();
+            let e = SdfGrid::read_sdf(&path).unwrap_err().to_string();
+            assert!(e.contains("absurd size") && e.contains(name), "{e}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
