@@ -19,7 +19,10 @@
 //! and the resolution `r'` that brings the error down to a target `t` is `r (e(r) / t)^(1/p)`.
 //! Without an observed order (the `r/2` grid could not be built, or the differences do not
 //! fall) the estimate is `d(r, 2r)` itself (exact for a fast-converging model, a lower bound
-//! otherwise) and the suggested resolution uses `p = 1` (conservative).
+//! otherwise) and the suggested resolution uses `p = 1` (conservative). A resolution more than
+//! [`MAX_REFINEMENT`] times finer is not suggested (the warning says no practical refinement
+//! removes the error), and a noise floor at rounding (at most `1e-8` of the motion: data made
+//! by this very model at this resolution) is said to be one rather than chased.
 //!
 //! The time step refines with the grid (`h` and `dt` halved together; `[time] substeps` is
 //! doubled at `2r` and halved at `r/2` where it divides, else kept): the model's own error is
@@ -98,8 +101,11 @@ impl RefineCheck {
     /// The check as JSON, judged against the noise floor `noise` when it is known: `share` is
     /// the estimate over the noise, a warning when it exceeds the noise, and the resolution
     /// that would bring it to half the noise (where it adds at most 12% to the rms).
+    /// `suggested_resolution` is absent where it would be more than [`MAX_REFINEMENT`] times
+    /// finer (`required_resolution` still says what it would take).
     pub fn to_json(&self, noise: Option<f64>) -> Value {
-        let suggested = noise.and_then(|n| self.resolution_for(0.5 * n));
+        let required = noise.and_then(|n| self.resolution_for(0.5 * n));
+        let suggested = required.filter(|&r| r <= MAX_REFINEMENT * self.resolution);
         json!({
             "resolution": self.resolution,
             "motion": self.motion,
@@ -115,6 +121,8 @@ impl RefineCheck {
             "share": noise.map(|n| self.estimate / n),
             "warning": self.warning(noise),
             "suggested_resolution": suggested,
+            "required_resolution": required,
+            "noise_at_rounding": noise.map(|n| self.rounding_floor(n)),
             "consistent_mass_difference": self.consistent_mass_difference,
             "mass_dominates": self.mass_dominates(),
             "per_frame": self.per_frame.iter().map(|(f, d)| json!({"frame": f, "difference": d})).collect::<Vec<_>>(),
@@ -128,10 +136,32 @@ impl RefineCheck {
             .is_some_and(|d| d < 0.5 * self.difference)
     }
 
-    /// A one-line warning when the estimated discretisation error exceeds the noise floor.
+    /// Whether the noise floor `n` is rounding: at most [`ROUNDING`] of the motion. Only
+    /// observations made by this very model at this resolution match it so closely.
+    pub fn rounding_floor(&self, n: f64) -> bool {
+        n <= ROUNDING * self.motion
+    }
+
+    /// A one-line warning when the estimated discretisation error exceeds the noise floor: the
+    /// resolution that brings it to half the floor, or, where that is more than
+    /// [`MAX_REFINEMENT`] times finer, that no practical refinement does; a floor at rounding
+    /// ([`Self::rounding_floor`]) is said to be one (the data carry the same discretisation).
     pub fn warning(&self, noise: Option<f64>) -> Option<String> {
         let n = noise?;
         (self.estimate > n).then(|| {
+            let head = format!(
+                "the model's own discretisation error (about {:.3e} at resolution {}) exceeds the noise floor {:.3e}",
+                self.estimate, self.resolution, n
+            );
+            if self.rounding_floor(n) {
+                return format!(
+                    "{head}, a floor at rounding ({:.1e} of the motion): the observations match this \
+                     model exactly, as data made by this very model at this resolution do; its \
+                     discretisation error is then in the data too and biases nothing here, but it \
+                     would against measured data",
+                    n / self.motion
+                );
+            }
             let r = self
                 .resolution_for(0.5 * n)
                 .unwrap_or(2.0 * self.resolution);
@@ -143,12 +173,14 @@ impl RefineCheck {
                 ),
                 _ => String::new(),
             };
+            if r > MAX_REFINEMENT * self.resolution {
+                return format!(
+                    "{head}: fitted parameters are biased; no practical refinement removes it (it \
+                     would take resolution {r:.3e}, more than {MAX_REFINEMENT}x finer){mass}"
+                );
+            }
             format!(
-                "the model's own discretisation error (about {:.3e} at resolution {}) exceeds the noise floor {:.3e}: \
-                 fitted parameters are biased; set [body] resolution = {r} or more and [time] substeps = {} (the step refined with the grid){mass}",
-                self.estimate,
-                self.resolution,
-                n,
+                "{head}: fitted parameters are biased; set [body] resolution = {r} or more and [time] substeps = {} (the step refined with the grid){mass}",
                 substeps_at(self.substeps, (r / self.resolution).ceil()),
             )
         })
@@ -170,14 +202,24 @@ impl RefineCheck {
             self.estimate
         );
         if let Some(n) = noise {
-            s.push_str(&format!(" = {:.2} x the noise floor", self.estimate / n));
+            let share = self.estimate / n;
+            s.push_str(&if share < 1e4 {
+                format!(" = {share:.2} x the noise floor")
+            } else {
+                format!(" = {share:.2e} x the noise floor")
+            });
         }
         s
     }
 }
 
-/// Differences below this share of the motion are rounding (no observed order from them).
+/// Differences (and noise floors) below this share of the motion are rounding (no observed
+/// order from them).
 const ROUNDING: f64 = 1e-8;
+
+/// The most a suggested resolution refines the model's: 8 times finer is 512 times the nodes
+/// and 8 times the steps; beyond that a suggestion is not a run.
+pub const MAX_REFINEMENT: f64 = 8.0;
 
 /// What [`refine_check`] compares.
 #[derive(Clone, Debug, Default)]

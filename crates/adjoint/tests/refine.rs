@@ -156,6 +156,47 @@ fn the_check_names_the_consistent_mass_where_the_inertia_dominates() {
     assert!(!w.contains("consistent"), "{w}");
 }
 
+/// The verdict against three noise floors of one check (error 1e-3, order 2, motion 0.1 at
+/// resolution 10): a floor of 1e-4 gets a resolution to set (10 (1e-3 / 5e-5)^(1/2) -> 45);
+/// a floor of 1e-7 would need 1415, more than 8x finer: no resolution is suggested, the
+/// warning says so; a floor of 1e-12 is rounding (data made by this very model), said as such.
+#[test]
+fn the_warning_suggests_only_practical_resolutions() {
+    let check = adjoint::refine::RefineCheck {
+        resolution: 10.0,
+        motion: 0.1,
+        difference: 0.75e-3,
+        max_difference: 2e-3,
+        coarser_difference: Some(3e-3),
+        order: Some(2.0),
+        estimate: 1e-3,
+        per_frame: vec![(1, 0.75e-3)],
+        note: None,
+        substeps: 1,
+        consistent_mass_difference: None,
+    };
+    let w = check.warning(Some(1e-4)).expect("a warning");
+    assert!(w.contains("set [body] resolution = 45 or more"), "{w}");
+    assert_eq!(check.to_json(Some(1e-4))["suggested_resolution"], 45.0);
+
+    let w = check.warning(Some(1e-7)).expect("a warning");
+    assert!(
+        w.contains("no practical refinement removes it (it would take resolution 1.415e3"),
+        "{w}"
+    );
+    let j = check.to_json(Some(1e-7));
+    assert!(j["suggested_resolution"].is_null(), "{j}");
+    assert_eq!(j["required_resolution"], 1415.0);
+    assert_eq!(j["noise_at_rounding"], false);
+
+    let w = check.warning(Some(1e-12)).expect("a warning");
+    assert!(w.contains("a floor at rounding (1.0e-11 of the motion)"), "{w}");
+    assert!(!w.contains("resolution ="), "{w}");
+    assert_eq!(check.to_json(Some(1e-12))["noise_at_rounding"], true);
+    assert!(check.summary(Some(1e-12)).ends_with("= 1.00e9 x the noise floor"));
+    assert!(check.warning(Some(1e-2)).is_none());
+}
+
 /// The trilinear field at a node is the node's value; at a point inside a full cell it is the
 /// trilinear interpolant, exact for a linear field.
 #[test]
