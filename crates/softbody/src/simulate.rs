@@ -241,6 +241,15 @@ pub fn run(a: Args) -> Result<(), String> {
             totals.substituted
         );
     }
+    if totals.fallbacks > 0 && !a.json {
+        crate::note!(
+            "warning: CG did not reach its tolerance within {} iterations in {} of {steps} steps; \
+             a direct factorization solved them (the step matrix is ill-conditioned: a Poisson \
+             ratio near 0.5, a very stiff ground or a very large time step)",
+            sim.solver.cg.max_iterations,
+            totals.fallbacks
+        );
+    }
     dir.finish(&mut summary, "summary.json")?;
     if a.json {
         crate::output::print_json(&summary)?;

@@ -275,3 +275,47 @@ fn fit_resume_continues_the_log_of_a_killed_run() {
     let log = std::fs::read_to_string(report.join("fit.log")).unwrap();
     assert_eq!(log.lines().count(), h.len());
 }
+
+/// No output replaces an input of its run: `observe --out` naming the scene (it overwrote the
+/// scene with points before), a report folder that holds the observations being fitted (it was
+/// replaced with them), or the scene's body file. Each is a one-line error; every file stays.
+#[test]
+fn outputs_never_replace_their_inputs() {
+    let dir = tmp("outputs", "inputs");
+    let s = write(&dir, "s.toml", &tiny_bar(2, ""));
+    let before = snapshot(&dir);
+    let spelled = dir.join(".").join("s.toml");
+    let o = run(&["observe", s.to_str().unwrap(), "--out", spelled.to_str().unwrap()]);
+    one_line_error(&o, "is an input of this run");
+    assert_eq!(snapshot(&dir), before);
+    // observations kept inside an earlier report folder, then a fit into that folder
+    let sim = dir.join("sim");
+    ok(&run(&[
+        "simulate",
+        s.to_str().unwrap(),
+        "--out",
+        sim.to_str().unwrap(),
+    ]));
+    let obs = sim.join("obs.csv");
+    ok(&run(&[
+        "observe",
+        s.to_str().unwrap(),
+        "--out",
+        obs.to_str().unwrap(),
+    ]));
+    let before = snapshot(&dir);
+    let o = run_on("fit", &s, &obs, &sim, &[]);
+    one_line_error(&o, "the folder holds an input of this run");
+    assert_eq!(snapshot(&dir), before);
+    // the scene's body file
+    let mesh = write(
+        &dir,
+        "cube.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    );
+    let m = write(&dir, "m.toml", &format!("[body]\nmesh = \"cube.obj\"\nresolution = 8\n[material]\nyoung = 1000.0\npoisson = 0.3\n[time]\ndt = 0.01\nsteps = 1\n"));
+    let before = snapshot(&dir);
+    let o = run(&["observe", m.to_str().unwrap(), "--out", mesh.to_str().unwrap()]);
+    one_line_error(&o, "cube.obj: is an input of this run");
+    assert_eq!(snapshot(&dir), before);
+}

@@ -125,6 +125,24 @@ fn simulate_with_other_preconditioners() {
     }
 }
 
+/// Steps that CG cannot solve within its iteration limit fall back to the direct solver: the
+/// JSON counts them and the human output warns (it said nothing before).
+#[test]
+fn fallbacks_to_the_direct_solver_are_said() {
+    let dir = tmp("cli", "fallbacks");
+    let text = tiny_bar(3, "[numerics]\ncg_max_iterations = 2\nreuse_factor = false\n");
+    let (o, _) = simulate(&dir, "small.toml", &text, &["--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["solver"]["fallbacks"], 3, "{}", v["solver"]);
+    let (o, _) = simulate(&dir, "small.toml", &text, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("warning: CG did not reach its tolerance within 2 iterations in 3 of 3 steps"),
+        "{err}"
+    );
+}
+
 #[test]
 fn bad_bodies_are_one_line_errors() {
     let dir = tmp("cli", "bodies");
