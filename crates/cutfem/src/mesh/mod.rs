@@ -86,7 +86,7 @@ fn read_ply(path: &Path) -> Result<Vec<u8>, Error> {
 
 impl TriMesh {
     /// Loads a mesh, choosing the reader by extension (case-insensitive): `.obj`, `.stl`
-    /// (ASCII or binary) or `.ply` (ASCII or binary little-endian). Errors name the file and
+    /// (ASCII or binary) or `.ply` (ASCII, binary little- or big-endian). Errors name the file and
     /// the line (or element/byte for binary files).
     pub fn load(path: impl AsRef<Path>) -> Result<TriMesh, Error> {
         let path = path.as_ref();

@@ -1,4 +1,4 @@
-//! PLY reader, `ascii 1.0` and `binary_little_endian 1.0`.
+//! PLY reader, `ascii 1.0`, `binary_little_endian 1.0` and `binary_big_endian 1.0`.
 //!
 //! The header declares elements (`element NAME COUNT`) with scalar properties
 //! (`property TYPE NAME`) or list properties (`property list COUNT_TYPE ITEM_TYPE NAME`), types
@@ -44,7 +44,14 @@ impl Ty {
             Ty::F64 => 8,
         }
     }
-    fn read(self, b: &[u8]) -> f64 {
+    /// The value of `self.size()` bytes `raw` stored in the given byte order.
+    fn read(self, raw: &[u8], big_endian: bool) -> f64 {
+        let mut b = [0u8; 8];
+        let b = &mut b[..raw.len()];
+        b.copy_from_slice(raw);
+        if big_endian {
+            b.reverse();
+        }
         match self {
             Ty::I8 => b[0] as i8 as f64,
             Ty::U8 => b[0] as f64,
@@ -71,7 +78,7 @@ struct Element {
     props: Vec<Prop>,
 }
 
-/// Source of values: ASCII tokens (one element instance per line) or little-endian bytes.
+/// Source of values: ASCII tokens (one element instance per line) or bytes in either order.
 enum Body<'a> {
     Ascii {
         lines: std::iter::Enumerate<std::str::Lines<'a>>,
@@ -80,7 +87,15 @@ enum Body<'a> {
     Binary {
         bytes: &'a [u8],
         at: usize,
+        big_endian: bool,
     },
+}
+
+/// The body's encoding, from the header's `format` line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Format {
+    Ascii,
+    Binary { big_endian: bool },
 }
 
 /// Parses a PLY file's bytes; errors name the file and the header/body line (ASCII) or the
@@ -112,11 +127,12 @@ pub(crate) fn parse(path: &Path, bytes: &[u8]) -> Result<TriMesh, Error> {
         match tok.first().copied() {
             Some("format") => {
                 format = Some(match tok.get(1).copied() {
-                    Some("ascii") => false,
-                    Some("binary_little_endian") => true,
+                    Some("ascii") => Format::Ascii,
+                    Some("binary_little_endian") => Format::Binary { big_endian: false },
+                    Some("binary_big_endian") => Format::Binary { big_endian: true },
                     Some(f) => {
                         return Err(err(format!(
-                            "format '{f}' is not supported (ascii or binary_little_endian)"
+                            "format '{f}' is not supported (ascii, binary_little_endian or binary_big_endian)"
                         )))
                     }
                     None => return Err(err("format line without a format".into())),
@@ -163,9 +179,13 @@ pub(crate) fn parse(path: &Path, bytes: &[u8]) -> Result<TriMesh, Error> {
             Some(other) => return Err(err(format!("unexpected header keyword '{other}'"))),
         }
     }
-    let binary = format.ok_or_else(|| bad("header has no 'format' line".into()))?;
-    let mut body = if binary {
-        Body::Binary { bytes, at }
+    let format = format.ok_or_else(|| bad("header has no 'format' line".into()))?;
+    let mut body = if let Format::Binary { big_endian } = format {
+        Body::Binary {
+            bytes,
+            at,
+            big_endian,
+        }
     } else {
         let text = std::str::from_utf8(&bytes[at..]).map_err(|_| bad("ASCII body is not text".into()))?;
         Body::Ascii {
@@ -277,7 +297,11 @@ fn read_instance(
             }
             Ok((out, place))
         }
-        Body::Binary { bytes, at } => {
+        Body::Binary {
+            bytes,
+            at,
+            big_endian,
+        } => {
             let place = format!("{} {inst} (byte {at})", el.name);
             let mut take = |t: Ty| -> Result<f64, Error> {
                 let end = *at + t.size();
@@ -292,7 +316,7 @@ fn read_instance(
                         ),
                     ));
                 }
-                let v = t.read(&bytes[*at..end]);
+                let v = t.read(&bytes[*at..end], *big_endian);
                 *at = end;
                 Ok(v)
             };
