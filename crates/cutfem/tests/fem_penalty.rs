@@ -208,3 +208,35 @@ fn the_ground_push_says_where_the_contact_law_pushes() {
     assert!(push.hovers(push.force, h));
     assert!(!push.hovers(20.0 * push.force, h));
 }
+
+/// A sphere of radius 0.3 about y = 1 (cells of 1/8): a ground through its center puts its
+/// lower half in the plane (depth ~0.3, about half the crossings below); a ground under it, or
+/// touching it within a quarter cell, is no penetration; no ground, none.
+#[test]
+fn a_body_that_starts_in_the_ground_is_measured() {
+    let sim = |ground: &str| {
+        let text = format!(
+            "[body]\nshape = {{ kind = \"sphere\", center = [0.0, 1.0, 0.0], radius = 0.3 }}\nresolution = 8\n\
+             [material]\nyoung = 1000.0\npoisson = 0.3\n{ground}[time]\ndt = 0.01\nsteps = 1\n"
+        );
+        let scene = cutfem::scene::Scene::parse(&text, std::path::Path::new("p.toml")).unwrap();
+        scene.build_simulation().unwrap()
+    };
+    let ground = |height: f64| format!("[ground]\nnormal = [0.0, 1.0, 0.0]\nheight = {height:?}\n");
+    let (depth, share) = sim(&ground(1.0))
+        .initial_penetration()
+        .expect("half in the ground");
+    assert!((depth - 0.3).abs() < 0.02, "{depth}");
+    assert!((0.35..0.65).contains(&share), "{share}");
+    let (depth, share) = sim(&ground(5.0))
+        .initial_penetration()
+        .expect("all in the ground");
+    assert!((depth - 4.3).abs() < 0.02 && share == 1.0, "{depth} {share}");
+    assert_eq!(sim(&ground(0.5)).initial_penetration(), None);
+    assert_eq!(
+        sim(&ground(0.72)).initial_penetration(),
+        None,
+        "touching within a quarter cell"
+    );
+    assert_eq!(sim("").initial_penetration(), None);
+}

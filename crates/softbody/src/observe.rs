@@ -270,6 +270,11 @@ pub fn run(a: Args) -> Result<(), String> {
 
     // the scene's model with its model-level effects (e.g. `wind`)
     let mut sim = scene.build_simulation().map_err(|e| e.to_string())?;
+    if !a.json {
+        if let Some(w) = crate::simulate::penetration_warning(sim.initial_penetration()) {
+            crate::note!("{w}");
+        }
+    }
     let pb = progress::bar(last as u64, "observe", a.json);
     let run = observe_run(&mut sim, &rig, a.noise, &frames, |_| pb.inc(1))
         .map_err(|e| format!("{}: {e}", a.scene.display()))?;

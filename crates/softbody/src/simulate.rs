@@ -119,6 +119,17 @@ fn write_advected(
     }))
 }
 
+/// The warning for a body that starts in the ground ([`cutfem::fem::Simulation::initial_penetration`]).
+pub fn penetration_warning(penetration: Option<(f64, f64)>) -> Option<String> {
+    let (depth, share) = penetration?;
+    Some(format!(
+        "warning: the body starts {depth:.4} deep in the ground ({:.0}% of its surface below \
+         the plane): the contact springs push it out from the first step; if that is not meant, \
+         check [ground] height and normal (the ground is the half-space normal . x >= height)",
+        100.0 * share
+    ))
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<(), String> {
     let t_total = Instant::now();
@@ -138,6 +149,12 @@ pub fn run(a: Args) -> Result<(), String> {
 
     // the scene's model with its model-level effects (e.g. `wind`)
     let mut sim = scene.build_simulation().map_err(|e| e.to_string())?;
+    let penetration = sim.initial_penetration();
+    if !a.json {
+        if let Some(w) = penetration_warning(penetration) {
+            crate::note!("{w}");
+        }
+    }
     let surface = sim
         .grid
         .surface()
@@ -218,6 +235,7 @@ pub fn run(a: Args) -> Result<(), String> {
             "contact_newton_iterations": totals.info.newton
         },
         "final": {"max_displacement": sim.max_displacement()},
+        "initial_penetration": penetration.map(|(depth, share)| json!({"depth": depth, "share": share})),
         "files": {
             "frames": frames_dir.display().to_string(),
             "picture": pic_path.display().to_string(),

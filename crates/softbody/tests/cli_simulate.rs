@@ -143,6 +143,30 @@ fn fallbacks_to_the_direct_solver_are_said() {
     );
 }
 
+/// A ground above the body's bottom (a sign or unit slip) is said before the run, and the
+/// JSON measures it; a body above the ground gets neither.
+#[test]
+fn a_body_that_starts_in_the_ground_is_warned_of() {
+    let dir = tmp("cli", "penetration");
+    let scene = |height: f64| {
+        format!(
+            "[body]\nshape = {{ kind = \"sphere\", center = [0.0, 1.0, 0.0], radius = 0.3 }}\nresolution = 8\n\
+             [material]\nyoung = 1000.0\npoisson = 0.3\n[ground]\nnormal = [0.0, 1.0, 0.0]\nheight = {height:?}\n\
+             [time]\ndt = 0.01\nsteps = 1\n"
+        )
+    };
+    let (o, _) = simulate(&dir, "in.toml", &scene(1.0), &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("warning: the body starts 0.3"), "{err}");
+    let (o, _) = simulate(&dir, "in.toml", &scene(1.0), &["--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let depth = v["initial_penetration"]["depth"].as_f64().unwrap();
+    assert!((depth - 0.3).abs() < 0.02, "{depth}");
+    let (o, _) = simulate(&dir, "above.toml", &scene(0.5), &[]);
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("deep in the ground"));
+}
+
 #[test]
 fn bad_bodies_are_one_line_errors() {
     let dir = tmp("cli", "bodies");

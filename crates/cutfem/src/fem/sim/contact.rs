@@ -32,6 +32,25 @@ impl Simulation {
         }
     }
 
+    /// How far the rest body reaches into the ground: the largest depth below the plane of a
+    /// rest surface crossing and the share of crossings below it, when some crossing lies more
+    /// than a quarter cell below (a body resting on the plane touches it within a cell's
+    /// rounding). `None` without the ground or when the body starts above it. Such a start
+    /// is a misplaced ground (a sign or unit), not a contact: the springs throw the body out.
+    pub fn initial_penetration(&self) -> Option<(f64, f64)> {
+        let ground = self.model.ground.as_ref()?;
+        let depths: Vec<f64> = self
+            .crossings
+            .iter()
+            .map(|c| -ground.distance(c.lerp(&self.grid.positions)))
+            .collect();
+        let deepest = depths.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (deepest > 0.25 * self.grid.h()).then(|| {
+            let below = depths.iter().filter(|&&d| d > 0.0).count();
+            (deepest, below as f64 / depths.len() as f64)
+        })
+    }
+
     /// Whether `push`, gathered from this simulation's states, says the ground holds the body
     /// off the plane ([`GroundPush::hovers`], with this body's weight and cell size).
     pub fn hovers(&self, push: &GroundPush) -> bool {
