@@ -519,6 +519,10 @@ impl Scene {
             let sdf = mesh
                 .to_sdf(resolution, PADDING_CELLS)
                 .map_err(|e| Error::format(&path, e.to_string()))?;
+            if let Some((lo, hi)) = mesh.bounding_box() {
+                sdf.check_sampled_body(lo, hi)
+                    .map_err(|e| Error::format(&path, e))?;
+            }
             mesh_cache_put(&path, resolution, &sdf);
             sdf
         } else if let Some(shape) = &b.shape {
@@ -526,9 +530,13 @@ impl Scene {
             shape
                 .validate()
                 .map_err(|e| Error::format(&self.path, e.to_string()))?;
-            shape
+            let sdf = shape
                 .to_sdf(resolution, PADDING_CELLS)
-                .map_err(|e| Error::format(&self.path, e.to_string()))?
+                .map_err(|e| Error::format(&self.path, e.to_string()))?;
+            let (lo, hi) = shape.bounding_box();
+            sdf.check_sampled_body(lo, hi)
+                .map_err(|e| Error::format(&self.path, e))?;
+            sdf
         } else {
             return Err(Error::format(
                 &self.path,

@@ -306,6 +306,35 @@ impl SdfGrid {
         }
         Ok(())
     }
+
+    /// For a grid sampled from a body whose bounding box is `lo..hi` (a mesh or a shape):
+    /// errors, saying why, when no node lies inside. A body thinner than two cells falls
+    /// between the nodes (the resolution to raise it to, or a units slip when that is absurd);
+    /// a thicker one with no inside node encloses no volume (a flat, open or inside-out
+    /// surface).
+    pub fn check_sampled_body(&self, lo: [f64; 3], hi: [f64; 3]) -> Result<(), String> {
+        if self.values.iter().any(|&v| v < 0.0) {
+            return Ok(());
+        }
+        let extent: [f64; 3] = std::array::from_fn(|a| hi[a] - lo[a]);
+        let thin = extent.iter().copied().fold(f64::INFINITY, f64::min);
+        let h = self.spacing;
+        let size = format!("{:.3e} x {:.3e} x {:.3e}", extent[0], extent[1], extent[2]);
+        Err(if thin <= 0.0 {
+            format!("body: no grid node lies inside the body: it spans {size}, no volume (a flat surface is not a solid)")
+        } else if thin < 2.0 * h {
+            format!(
+                "body: no grid node lies inside the body: it spans {size} and a grid cell is {h:.3e}; \
+                 raise [body] resolution to {:.3e} or more, or check the body's units",
+                2.0 / thin
+            )
+        } else {
+            format!(
+                "body: no grid node lies inside the body although it spans {size} (cells of {h:.3e}): \
+                 its surface encloses no volume (open, flat or inside-out faces?)"
+            )
+        })
+    }
 }
 
 /// The gradient of the trilinear interpolant of corner values `v` (indexed `a + 2 b + 4 c`) at

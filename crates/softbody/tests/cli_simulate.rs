@@ -200,7 +200,8 @@ fn bad_bodies_are_one_line_errors() {
         &format!("[body]\nsdf = \"/nonexistent/x.sdf\"\n[material]{rest}"),
         "x.sdf",
     );
-    // empty body: a sphere of radius 0.001 at resolution 10 has no inside node
+    // empty body: a sphere of radius 0.001 at resolution 10 has no inside node; the error
+    // says how small it is against the cells
     let empty = edited(
         &bar,
         &[(
@@ -208,7 +209,10 @@ fn bad_bodies_are_one_line_errors() {
             "shape = { kind = \"sphere\", center = [0.05, 1.05, 0.05], radius = 0.001 }",
         )],
     );
-    expect_error(&empty, "empty body");
+    expect_error(
+        &empty,
+        "body: no grid node lies inside the body: it spans 2.000e-3 x 2.000e-3 x 2.000e-3 and a grid cell is 1.000e-1; raise [body] resolution to 1.000e3 or more",
+    );
     // a body too large for memory: refused before allocating
     let huge = edited(&bar, &[("resolution = 10", "resolution = 100000")]);
     expect_error(&huge, "resolution");

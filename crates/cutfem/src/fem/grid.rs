@@ -109,9 +109,10 @@ impl Grid {
             .collect();
         let n_active = active.iter().filter(|&&a| a).count();
         if n_active == 0 {
-            return Err(Error::Invalid(
-                "body: the SDF has no inside node (empty body)".into(),
-            ));
+            return Err(Error::Invalid(format!(
+                "body: no grid cell holds enough of the body to simulate (empty body, or thinner \
+                 than a cell of {h:.3e}); raise the resolution or check the body's units"
+            )));
         }
         let mut node_dofs = vec![INACTIVE; nx * ny * nz];
         for (c, _) in active.iter().enumerate().filter(|(_, &a)| a) {

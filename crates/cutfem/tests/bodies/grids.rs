@@ -40,6 +40,23 @@ fn grid_accessors_and_trilinear_interpolation() {
     g.validate().unwrap();
 }
 
+/// A body sampled without an inside node is explained: flat (no volume), thinner than two
+/// cells (the resolution it needs), or enclosing nothing at a thickness the grid resolves.
+#[test]
+fn a_sampled_body_without_inside_nodes_says_why() {
+    let outside = SdfGrid::from_fn([0.0; 3], 0.1, [4, 4, 4], |_| 1.0);
+    let e = outside.check_sampled_body([0.0; 3], [0.3, 0.0, 0.3]).unwrap_err();
+    assert!(e.contains("no volume"), "{e}");
+    let e = outside
+        .check_sampled_body([0.0; 3], [0.3, 0.05, 0.3])
+        .unwrap_err();
+    assert!(e.contains("raise [body] resolution to 4.000e1 or more"), "{e}");
+    let e = outside.check_sampled_body([0.0; 3], [0.3, 0.3, 0.3]).unwrap_err();
+    assert!(e.contains("encloses no volume"), "{e}");
+    let inside = SdfGrid::from_fn([0.0; 3], 0.1, [4, 4, 4], |p| p[0] - 0.15);
+    assert!(inside.check_sampled_body([0.0; 3], [0.3, 0.05, 0.3]).is_ok());
+}
+
 #[test]
 fn grid_validation_errors() {
     let g = SdfGrid::from_fn([0.0; 3], 0.1, [3, 3, 3], |_| 1.0);
