@@ -545,7 +545,7 @@ mod tests {
         std::fs::write(&obs, "frame,x,y,z\n").unwrap();
         let e = OutDir::begin(&out, &[scene.clone(), obs.clone()]).unwrap_err();
         assert!(e.contains("holds an input of this run"), "{e}");
-        assert!(OutDir::begin(&out, &[scene.clone()]).is_ok());
+        assert!(OutDir::begin(&out, std::slice::from_ref(&scene)).is_ok());
         assert_eq!(std::fs::read_to_string(&scene).unwrap(), "scene");
         assert_eq!(std::fs::read_to_string(&obs).unwrap(), "frame,x,y,z\n");
         // a new target holds nothing

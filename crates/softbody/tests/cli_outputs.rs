@@ -313,7 +313,7 @@ fn outputs_never_replace_their_inputs() {
         "cube.obj",
         "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
     );
-    let m = write(&dir, "m.toml", &format!("[body]\nmesh = \"cube.obj\"\nresolution = 8\n[material]\nyoung = 1000.0\npoisson = 0.3\n[time]\ndt = 0.01\nsteps = 1\n"));
+    let m = write(&dir, "m.toml", "[body]\nmesh = \"cube.obj\"\nresolution = 8\n[material]\nyoung = 1000.0\npoisson = 0.3\n[time]\ndt = 0.01\nsteps = 1\n");
     let before = snapshot(&dir);
     let o = run(&["observe", m.to_str().unwrap(), "--out", mesh.to_str().unwrap()]);
     one_line_error(&o, "cube.obj: is an input of this run");
