@@ -112,11 +112,46 @@ pub struct Study {
     pub recordings: Vec<Recording>,
 }
 
-/// True when the TOML text is a study file (it has `[[recording]]` tables), not a scene.
+/// True when the TOML text is meant as a study file (it has `[[recording]]` tables or a
+/// `[study]` section, of whatever shape: [`Study::parse`] then says what is wrong with them),
+/// not a scene (no scene has either key). Text that is not TOML is neither: the scene reader
+/// names its line.
 pub fn is_study(text: &str) -> bool {
     text.parse::<toml::Table>()
-        .map(|t| matches!(t.get("recording"), Some(toml::Value::Array(_))))
+        .map(|t| t.contains_key("recording") || t.contains_key("study"))
         .unwrap_or(false)
+}
+
+/// The longest recording name, in characters.
+pub const MAX_NAME_CHARS: usize = 100;
+
+/// Checks a recording's name: it names the recording's folder in a study's report, so it must
+/// be one portable file name: not `.` or `..`, not hidden (a leading `.`), no path separator,
+/// no control character, none of the characters Windows refuses in file names (`<>:"/\|?*`),
+/// at most [`MAX_NAME_CHARS`] characters.
+pub fn check_name(name: &str) -> Result<(), String> {
+    let shown: String = name.escape_debug().collect();
+    if name.starts_with('.') {
+        return Err(format!(
+            "`{shown}` must not start with '.' (it names the recording's folder in the report)"
+        ));
+    }
+    if let Some(c) = name
+        .chars()
+        .find(|c| c.is_control() || "<>:\"/\\|?*".contains(*c))
+    {
+        return Err(format!(
+            "`{shown}` must not contain {:?} (it names the recording's folder in the report; use letters, digits, spaces, '-', '_', '.')",
+            c
+        ));
+    }
+    if name.chars().count() > MAX_NAME_CHARS {
+        return Err(format!(
+            "`{}...` is longer than {MAX_NAME_CHARS} characters",
+            name.chars().take(20).collect::<String>()
+        ));
+    }
+    Ok(())
 }
 
 impl Study {
@@ -168,6 +203,10 @@ impl Study {
                 "study.shared: stiffness_field cannot be shared (its basis follows each recording's grid); fit it per recording".into(),
             ));
         }
+        if let Some(o) = &section.optimizer {
+            o.parse::<crate::optim::Optimizer>()
+                .map_err(|e| at(format!("study.optimizer: {e}")))?;
+        }
         if let Some(c) = &section.cost {
             c.parse::<crate::fit::CostKind>()
                 .map_err(|e| at(format!("study.cost: {e}")))?;
@@ -181,24 +220,53 @@ impl Study {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut recordings: Vec<Recording> = Vec::with_capacity(file.recording.len());
         for (i, e) in file.recording.into_iter().enumerate() {
+            let given = e.name.is_some();
             let name = e
                 .name
                 .map(|n| n.trim().to_string())
                 .or_else(|| e.scene.file_stem().map(|s| s.to_string_lossy().into_owned()))
                 .filter(|n| !n.is_empty())
                 .unwrap_or_else(|| format!("recording-{}", i + 1));
-            if name.contains(['/', '\\', ':']) {
+            let key = if !given {
+                format!("recording[{i}].name (not given: the scene's file name)")
+            } else {
+                format!("recording[{i}].name")
+            };
+            check_name(&name).map_err(|e| at(format!("{key}: {e}")))?;
+            if let Some(r) = recordings
+                .iter()
+                .find(|r| r.name.to_lowercase() == name.to_lowercase())
+            {
+                let how = if r.name == name {
+                    String::new()
+                } else {
+                    format!(
+                        " (as `{}`: names that differ only in case are one folder on macOS and Windows)",
+                        r.name
+                    )
+                };
                 return Err(at(format!(
-                    "recording[{i}].name: `{name}` must not contain '/', '\\' or ':'"
+                    "{key}: `{name}` names two recordings{how}; give each a unique name"
                 )));
             }
-            if recordings.iter().any(|r| r.name == name) {
+            let paths = [
+                ("scene", Some(&e.scene)),
+                ("observations", Some(&e.observations)),
+                ("cameras", e.cameras.as_ref()),
+            ];
+            if let Some((key, _)) = paths
+                .iter()
+                .find(|(_, p)| p.is_some_and(|p| p.as_os_str().is_empty()))
+            {
                 return Err(at(format!(
-                    "recording[{i}].name: `{name}` names two recordings (give each a unique name)"
+                    "recording[{i}].{key}: empty (name a file, relative to the study file)"
                 )));
             }
             if e.steps == Some(0) {
                 return Err(at(format!("recording[{i}].steps: must be at least 1")));
+            }
+            if let Some(n) = e.steps {
+                cutfem::scene::check_steps(n, &format!("recording[{i}].steps")).map_err(at)?;
             }
             recordings.push(Recording {
                 name,
@@ -246,6 +314,15 @@ mod tests {
     fn a_study_resolves_paths_and_names() {
         assert!(is_study(TWO));
         assert!(!is_study("[time]\nsteps = 3\n"));
+        // a study written wrongly is still a study (its parser names the mistake)
+        for wrong in [
+            "recording = 3\n",
+            "[recording]\nscene = \"a.toml\"\n",
+            "[study]\n",
+        ] {
+            assert!(is_study(wrong), "{wrong}");
+        }
+        assert!(!is_study("[[recording]\n"));
         let s = parse(TWO).unwrap();
         assert_eq!(s.recordings.len(), 2);
         assert_eq!(s.recordings[0].name, "drop");
@@ -274,6 +351,24 @@ mod tests {
                 "names two recordings",
             ),
             (TWO.replace("steps = 20", "steps = 0"), "recording[1].steps"),
+            (
+                TWO.replace("\"sub/throw.toml\"", "\"\""),
+                "recording[1].scene: empty",
+            ),
+            (TWO.replace("\"c.json\"", "\"\""), "recording[1].cameras: empty"),
+            (
+                TWO.replace("[study]\n", "[study]\noptimizer = \"adam\"\n"),
+                "study.optimizer: unknown optimizer `adam`",
+            ),
+            (
+                "[study]\nshared = [\"young\"]\n[recording]\nscene = \"a.toml\"\nobservations = \"a.csv\"\n"
+                    .to_string(),
+                "line 3: invalid type: map, expected a sequence",
+            ),
+            (
+                TWO.replace("steps = 20", "steps = 1000001"),
+                "recording[1].steps: 1000001 steps is more than",
+            ),
             (
                 TWO.replace("steps = 20", "step = 20"),
                 "line 14: unknown field `step`",
@@ -304,5 +399,43 @@ mod tests {
             assert!(e.starts_with("/data/s.toml: ") && e.contains(want), "{want}: {e}");
             assert!(!e.contains('\n'), "{e}");
         }
+    }
+
+    /// A recording's name becomes a folder of the study's report: names that would leave the
+    /// report (`..`), hide in it, hold a separator, or collide on a case-blind file system are
+    /// refused; ordinary names (spaces, accents, dots inside) are kept.
+    #[test]
+    fn recording_names_are_portable_folder_names() {
+        let with = |name: &str| TWO.replace("name = \"throw\"", &format!("name = {name:?}"));
+        let refused = [
+            ("..", "must not start with '.'"),
+            (".", "must not start with '.'"),
+            (".softbody-out", "must not start with '.'"),
+            ("../../etc", "must not start with '.'"),
+            ("a/b", "must not contain '/'"),
+            ("a\\b", "must not contain '\\\\'"),
+            ("c:x", "must not contain ':'"),
+            ("what?", "must not contain '?'"),
+            ("line\nbreak", "must not contain '\\n'"),
+            ("Drop", "differ only in case"),
+            (&"x".repeat(101), "longer than 100"),
+        ];
+        for (name, want) in refused {
+            let e = parse(&with(name)).unwrap_err();
+            assert!(
+                e.contains("recording[1].name") && e.contains(want),
+                "{name:?}: {e}"
+            );
+            assert!(!e.contains('\n'), "{e}");
+        }
+        for name in ["throw 2", "Würfe (weich)", "v1.2", "-x", &"x".repeat(100)] {
+            assert_eq!(parse(&with(name)).unwrap().recordings[1].name, name);
+        }
+        // a default name (the scene's file stem) is checked too
+        let hidden = TWO.replace(
+            "name = \"throw\"\nscene = \"sub/throw.toml\"",
+            "scene = \"sub/.throw.toml\"",
+        );
+        assert!(parse(&hidden).unwrap_err().contains("must not start with '.'"));
     }
 }

@@ -68,8 +68,9 @@ impl ProblemArgs {
                 self.scene.display()
             ));
         }
-        let obs_path = self.observations()?;
+        // the scene first: a file that is not what it should be says so before a flag is missed
         let scene = Scene::load(&self.scene).map_err(|e| e.to_string())?;
+        let obs_path = self.observations()?;
         let n_steps = steps(self.steps, &scene)?;
         let section = scene.fit.clone().unwrap_or_default();
         let params = self.params(&section)?;

@@ -14,11 +14,26 @@ use crate::study_fit::{recording_problem, refuse_scene_flags};
 use adjoint::study::Study;
 use serde_json::{json, Value};
 
+/// The study report's own file.
+const SUMMARY: &str = "diagnosis.json";
+
 /// Runs `diagnose` on a study file.
 pub fn run(args: &Args) -> Result<(), String> {
     let p = &args.problem;
     refuse_scene_flags(p, false)?;
     let study = Study::load(&p.scene).map_err(|e| e.to_string())?;
+    // each recording gets a folder of its name beside the study's own file
+    if let Some(rec) = study
+        .recordings
+        .iter()
+        .find(|r| r.name.eq_ignore_ascii_case(SUMMARY))
+    {
+        return Err(format!(
+            "{}: recording `{}`: the name is the study report's own file; rename the recording",
+            p.scene.display(),
+            rec.name
+        ));
+    }
     // every recording read and checked before anything is written
     let mut ready = Vec::with_capacity(study.recordings.len());
     for rec in &study.recordings {
@@ -33,7 +48,7 @@ pub fn run(args: &Args) -> Result<(), String> {
     let mut rows = Vec::with_capacity(ready.len());
     for (rec, r) in study.recordings.iter().zip(ready) {
         let at = |e: String| format!("recording `{}`: {e}", rec.name);
-        let sub = crate::out_dir::OutDir::begin(&out.path().join(&rec.name), &[]).map_err(at)?;
+        let sub = out.nested(&rec.name).map_err(at)?;
         let (d, _) = diagnose_ready(r, args, &rec.scene, &sub).map_err(at)?;
         sub.commit().map_err(at)?;
         if !args.json {
@@ -56,7 +71,7 @@ pub fn run(args: &Args) -> Result<(), String> {
         "recordings": rows,
         "joint": false,
     });
-    out.finish(&mut summary, "diagnosis.json")?;
+    out.finish(&mut summary, SUMMARY)?;
     if args.json {
         crate::output::print_json(&summary)?;
     } else {

@@ -160,6 +160,25 @@ fn bad_studies_and_scene_flags_are_one_line_errors() {
             "--observations",
         ),
         (path("f.toml", &good), vec!["--resume"], "--resume"),
+        // a study written wrongly is read as a study, and one that is not TOML as such
+        (
+            path("h.toml", &good.replace("[[recording]]", "[recording]")),
+            vec![],
+            "expected a sequence",
+        ),
+        (
+            path(
+                "i.toml",
+                &good.replace("iterations = 15", "iterations = 99999999999999999999"),
+            ),
+            vec![],
+            "line 4",
+        ),
+        (
+            path("j.toml", &good.replace("gauss-newton", "adam")),
+            vec![],
+            "study.optimizer: unknown optimizer `adam`",
+        ),
     ];
     let out = dir.join("out");
     for (study, flags, needle) in cases {
@@ -321,6 +340,20 @@ fn diagnose_a_study_diagnoses_every_recording() {
     // a flag for one scene is refused, naming it
     let o = run(&["diagnose", study.to_str().unwrap(), "--steps", "3"]);
     one_line_error(&o, "--steps");
+    // each recording's folder is a report of softbody's own (a later run may replace it)
+    assert!(out.join("swing").join(".softbody-out").is_file());
+    // a recording named like the study report's own file is refused before anything is written
+    let text = format!("{HEAD}{}", entry("swing")).replace("name = \"swing\"", "name = \"Diagnosis.JSON\"");
+    let clash = write(&dir, "clash.toml", &text);
+    let out2 = dir.join("clash-report");
+    let o = run(&[
+        "diagnose",
+        clash.to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    one_line_error(&o, "the study report's own file");
+    assert!(!out2.exists());
 }
 
 #[test]
