@@ -2,7 +2,7 @@
 //! differences under refinement for a bending cantilever, and the model state carried between
 //! grids.
 
-use adjoint::refine::{carry_model, displacement_at, refine_check, RefineParams};
+use adjoint::refine::{carry_model, displacement_at, refine_check, RefineParams, MAX_REFINEMENT};
 use cutfem::fem::Grid;
 use cutfem::scene::Scene;
 use gpumat::{Matrix, Vec3};
@@ -106,10 +106,19 @@ fn cantilever_differences_fall_under_refinement() {
     assert!((check.estimate - factor * check.difference).abs() <= 1e-12 * check.estimate);
     let r = check.resolution_for(0.5 * check.estimate).expect("a finer grid");
     assert!(r > check.resolution, "{r}");
-    // the JSON carries the verdict against a noise floor
-    let j = check.to_json(Some(0.1 * check.estimate));
+    // the JSON carries the verdict against a noise floor: a finer grid where a practical one
+    // (at most MAX_REFINEMENT times finer) reaches the floor, else only what it would take
+    let j = check.to_json(Some(0.5 * check.estimate));
     assert!(j["warning"].is_string());
-    assert!(j["suggested_resolution"].as_f64().unwrap() > check.resolution);
+    let suggested = j["suggested_resolution"].as_f64().unwrap();
+    assert!(suggested > check.resolution && suggested <= MAX_REFINEMENT * check.resolution);
+    assert_eq!(j["required_resolution"].as_f64(), Some(suggested));
+    let far = check.to_json(Some(1e-3 * check.estimate));
+    assert!(
+        far["warning"].is_string() && far["suggested_resolution"].is_null(),
+        "{far}"
+    );
+    assert!(far["required_resolution"].as_f64().unwrap() > MAX_REFINEMENT * check.resolution);
     let quiet = check.to_json(Some(10.0 * check.estimate));
     assert!(quiet["warning"].is_null() && quiet["suggested_resolution"].is_null());
 }

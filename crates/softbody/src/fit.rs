@@ -228,7 +228,7 @@ pub fn run(args: Args) -> Result<(), String> {
     let mut log = FitLog::begin(
         &out.join("fit.log"),
         earlier.as_deref(),
-        &params.labels(),
+        &initial_values.iter().map(|(k, _)| k.clone()).collect::<Vec<_>>(),
         &mut x0,
     )?;
 

@@ -64,9 +64,11 @@ fn fit_recovers_the_truth_and_resumes() {
     let log = std::fs::read_to_string(out.join("fit.log")).unwrap();
     assert_eq!(log.lines().count(), history.len());
 
-    // an interrupted fit: keep the first two logged iterations, then resume
-    let kept: Vec<&str> = log.lines().take(2).collect();
-    std::fs::write(out.join("fit.log"), kept.join("\n") + "\n").unwrap();
+    // an interrupted fit: keep the first two logged iterations and half of the third (a kill
+    // while it was written), then resume
+    let kept: Vec<&str> = log.lines().take(3).collect();
+    let torn = &kept[2][..kept[2].len() / 2];
+    std::fs::write(out.join("fit.log"), format!("{}\n{}\n{torn}", kept[0], kept[1])).unwrap();
     let o = run_on(
         "fit",
         &start,
@@ -84,6 +86,20 @@ fn fit_recovers_the_truth_and_resumes() {
     let log = std::fs::read_to_string(out.join("fit.log")).unwrap();
     assert_eq!(log.lines().count(), h.len());
     assert!(j["discretisation"].is_null(), "--no-refine-check skips it");
+    // a log of other parameters is not this fit's start: refused, the report left as it was
+    let before = std::fs::read(out.join("fit.json")).unwrap();
+    let o = run_on(
+        "fit",
+        &start,
+        &obs,
+        &out,
+        &["--params", "young,density", "--resume"],
+    );
+    one_line_error(
+        &o,
+        "the log is of a fit of poisson,young, this fit is of density,young",
+    );
+    assert_eq!(std::fs::read(out.join("fit.json")).unwrap(), before);
 }
 
 #[test]

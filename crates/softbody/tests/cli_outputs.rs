@@ -140,9 +140,15 @@ fn a_simulate_rerun_with_another_scene_leaves_no_frame_of_the_first() {
 fn a_folder_of_other_files_is_not_replaced() {
     let dir = tmp("outputs", "foreign");
     let s = write(&dir, "s.toml", &tiny_bar(2, ""));
-    // the folder of the scene itself: refused, nothing deleted
-    one_line_error(&simulate(&s, &dir), "holds files that softbody did not write");
+    // the folder of the scene itself: refused (it holds an input), nothing deleted
+    one_line_error(&simulate(&s, &dir), "holds an input of this run");
     assert!(s.exists());
+    // a folder of other files: refused, nothing deleted
+    let other = dir.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    let notes = write(&other, "notes.txt", "x");
+    one_line_error(&simulate(&s, &other), "holds files that softbody did not write");
+    assert!(notes.exists());
     let file = write(&dir, "file", "x");
     one_line_error(&simulate(&s, &file), "is not a folder");
 }

@@ -3,9 +3,12 @@
 //! "x"}`), appended and flushed as the optimizer goes, so that a killed fit can be resumed.
 //!
 //! Resuming ([`FitLog::begin`] with the earlier log): the earlier entries are copied into the
-//! new log, the optimizer restarts from the last entry's `x` (which must have as many values as
-//! the parameters fitted), iteration numbers continue from the last one, and the restarted
-//! optimizer's iteration 0 (a repeat of the last entry) is not logged again.
+//! new log, the optimizer restarts from the last entry's `x` (the log must be of the same
+//! parameters, by the names of its `parameters`, and `x` must have as many finite values as
+//! the fit has coordinates), iteration numbers continue from the last one, and the restarted
+//! optimizer's iteration 0 (a repeat of the last entry) is not logged again. Each entry is
+//! written with one `write`, so a kill cuts at most the last line short; such a line (no
+//! newline, not JSON) is left out when the log is read.
 
 use crate::fit::FitObjective;
 use crate::optim::{minimize, IterationRecord, OptimInfo, OptimParams, Optimizer};
@@ -27,21 +30,53 @@ pub fn values_json(values: &[(String, f64)]) -> Value {
     )
 }
 
-/// Reads a fit log: its entries, blank lines skipped; errors name the file and line.
+/// Reads a fit log: its entries, blank lines skipped; errors name the file and line. A last
+/// line without its newline that is not JSON is an entry cut short when its run was killed:
+/// it is left out (the entry before it is the state to continue from).
 pub fn read_log(path: &Path) -> Result<Vec<Value>, Error> {
     let text =
         cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES).map_err(|e| Error::io(path, e))?;
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
-            serde_json::from_str(l).map_err(|e| Error::Line {
-                path: path.to_path_buf(),
-                line: i + 1,
-                msg: e.to_string(),
-            })
-        })
-        .collect()
+    parse_log(&text, path).map(|(entries, _)| entries)
+}
+
+/// The entries of log text and the text they stand in (`text` less a torn last line, with a
+/// final newline).
+fn parse_log(text: &str, path: &Path) -> Result<(Vec<Value>, String), Error> {
+    let torn = !text.is_empty() && !text.ends_with('\n');
+    let lines: Vec<&str> = text.lines().collect();
+    let mut entries = Vec::new();
+    let mut whole = text.to_string();
+    for (i, l) in lines.iter().enumerate() {
+        if l.trim().is_empty() {
+            continue;
+        }
+        match serde_json::from_str::<Value>(l) {
+            Ok(v) if v.is_object() => entries.push(v),
+            // the cut-short last line: the text before it is whole
+            _ if torn && i + 1 == lines.len() => {
+                whole.truncate(text.len() - l.len());
+                return Ok((entries, whole));
+            }
+            Ok(_) => {
+                return Err(Error::Line {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    msg: "not a log entry (a JSON object)".into(),
+                })
+            }
+            Err(e) => {
+                return Err(Error::Line {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    msg: e.to_string(),
+                })
+            }
+        }
+    }
+    if torn {
+        whole.push('\n');
+    }
+    Ok((entries, whole))
 }
 
 /// An open fit log (module docs).
@@ -56,43 +91,39 @@ pub struct FitLog {
 
 impl FitLog {
     /// Opens the log at `path` (appending). With `earlier` (a resumed fit), its entries are
-    /// copied into `path` and `x0` becomes the last entry's `x`; `labels` name the fitted
-    /// parameters in the error when that `x` does not fit them.
+    /// copied into `path` (as written, less a line cut short by a kill) and `x0` becomes the
+    /// last entry's `x`. `names` are the physical values this fit logs (the keys of an entry's
+    /// `parameters`): the earlier log must have been written for the same ones, with as many
+    /// coordinates as `x0`, or the start would be another fit's point.
     pub fn begin(
         path: &Path,
         earlier: Option<&Path>,
-        labels: &[String],
+        names: &[String],
         x0: &mut Vec<f64>,
     ) -> Result<FitLog, Error> {
+        let mut file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .map_err(|e| Error::io(path, e))?;
         let mut history = Vec::new();
         if let Some(earlier) = earlier {
-            history = read_log(earlier)?;
-            std::fs::copy(earlier, path).map_err(|e| Error::io(path, e))?;
-        }
-        if let Some(last) = history.last() {
-            let xs: Option<Vec<f64>> = last["x"]
-                .as_array()
-                .and_then(|a| a.iter().map(Value::as_f64).collect());
-            match xs {
-                Some(xs) if xs.len() == x0.len() => *x0 = xs,
-                _ => {
-                    return Err(Error::Invalid(format!(
-                        "{}: the last entry does not match the fitted parameters {}",
-                        path.display(),
-                        labels.join(",")
-                    )))
-                }
+            let text = cutfem::input::read_string(earlier, cutfem::input::MAX_DATA_BYTES)
+                .map_err(|e| Error::io(earlier, e))?;
+            let (entries, whole) = parse_log(&text, earlier)?;
+            if let Some(last) = entries.last() {
+                *x0 = resume_point(last, names, x0.len())
+                    .map_err(|e| Error::Invalid(format!("{}: {e}", earlier.display())))?;
             }
+            file.write_all(whole.as_bytes())
+                .and_then(|()| file.flush())
+                .map_err(|e| Error::io(path, e))?;
+            history = entries;
         }
         let offset = history
             .last()
             .and_then(|h| h["iteration"].as_u64())
             .map_or(0, |v| v as usize);
-        let file = std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(path)
-            .map_err(|e| Error::io(path, e))?;
         Ok(FitLog {
             path: path.to_path_buf(),
             file,
@@ -122,8 +153,10 @@ impl FitLog {
             "parameters": values_json(values),
             "x": rec.x,
         });
-        writeln!(self.file, "{entry}")
-            .and_then(|_| self.file.flush())
+        // one write of the whole line: a kill cuts at most this line short
+        self.file
+            .write_all(format!("{entry}\n").as_bytes())
+            .and_then(|()| self.file.flush())
             .map_err(|e| Error::io(&self.path, e))?;
         self.history.push(entry);
         Ok(())
@@ -137,6 +170,35 @@ impl FitLog {
     /// The entries, closing the log.
     pub fn into_history(self) -> Vec<Value> {
         self.history
+    }
+}
+
+/// The point a resumed fit starts from: the `x` of the earlier log's `last` entry, when that
+/// log was written for the parameters `names` (its `parameters` keys) with `n` coordinates.
+fn resume_point(last: &Value, names: &[String], n: usize) -> Result<Vec<f64>, String> {
+    let mut logged: Vec<&str> = last["parameters"]
+        .as_object()
+        .map(|m| m.keys().map(String::as_str).collect())
+        .unwrap_or_default();
+    let mut now: Vec<&str> = names.iter().map(String::as_str).collect();
+    logged.sort_unstable();
+    now.sort_unstable();
+    if logged != now {
+        return Err(format!(
+            "the log is of a fit of {}, this fit is of {}; resume with the same --params, or fit into another --out",
+            if logged.is_empty() { "unnamed parameters".to_string() } else { logged.join(",") },
+            now.join(",")
+        ));
+    }
+    let xs: Option<Vec<f64>> = last["x"]
+        .as_array()
+        .and_then(|a| a.iter().map(Value::as_f64).collect());
+    match xs {
+        Some(xs) if xs.len() == n && xs.iter().all(|v| v.is_finite()) => Ok(xs),
+        _ => Err(format!(
+            "the last entry's `x` is not {n} finite numbers (the coordinates of {})",
+            now.join(",")
+        )),
     }
 }
 
@@ -230,7 +292,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("adjoint-fitlog-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let (first, second) = (dir.join("a.log"), dir.join("b.log"));
-        let labels = ["young".to_string(), "poisson".to_string()];
+        let labels = ["young".to_string()];
         let mut x0 = vec![0.0, 0.0];
         let mut log = FitLog::begin(&first, None, &labels, &mut x0).unwrap();
         for i in 0..3 {
@@ -250,16 +312,46 @@ mod tests {
         assert_eq!(numbers, vec![0, 1, 2, 3]);
         assert_eq!(log.history().len(), 4);
         assert_eq!(entries[1]["parameters"]["young"], json!(10.0));
-        // a log of other parameters is refused, naming them
-        let mut x3 = vec![0.0; 3];
-        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &labels, &mut x3)
+        // a log of other parameters, or of another count, is refused, naming them
+        let both = ["young".to_string(), "poisson".to_string()];
+        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &both, &mut vec![0.0; 2])
             .unwrap_err()
             .to_string();
-        assert!(err.contains("young,poisson"), "{err}");
-        // a broken line names the file and line
+        assert!(
+            err.contains("a fit of young, this fit is of poisson,young"),
+            "{err}"
+        );
+        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &labels, &mut vec![0.0; 3])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("not 3 finite numbers"), "{err}");
+        // a last line cut short by a kill is left out, and the resumed log stays whole
+        let good = std::fs::read_to_string(&first).unwrap();
+        let torn = dir.join("torn.log");
+        std::fs::write(&torn, format!("{good}{{\"iteration\": 3, \"x\": [7.0, 1")).unwrap();
+        assert_eq!(read_log(&torn).unwrap().len(), 3);
+        let (mut x0, resumed) = (vec![0.0, 0.0], dir.join("d.log"));
+        let mut log = FitLog::begin(&resumed, Some(&torn), &labels, &mut x0).unwrap();
+        assert_eq!(x0, vec![2.0, 4.0]);
+        log.record(&rec(1, 5.0), None, &[("young".into(), 1.0)]).unwrap();
+        let entries = read_log(&resumed).unwrap();
+        assert_eq!(entries.len(), 4);
+        assert_eq!(entries[3]["iteration"], json!(3));
+        // a whole last line without its newline is an entry like any other
+        std::fs::write(&torn, good.trim_end()).unwrap();
+        let mut log = FitLog::begin(&dir.join("e.log"), Some(&torn), &labels, &mut x0).unwrap();
+        log.record(&rec(1, 5.0), None, &[]).unwrap();
+        assert_eq!(read_log(&dir.join("e.log")).unwrap().len(), 4);
+        // a broken line before the last names the file and line
         std::fs::write(&first, "{\"x\": [1, 2]}\nnot json\n").unwrap();
         let err = read_log(&first).unwrap_err().to_string();
         assert!(err.contains("a.log:2"), "{err}");
+        std::fs::write(&first, "{\"x\": [1, 2]}\n[1]\n{\"x\": [1, 2]}").unwrap();
+        let err = read_log(&first).unwrap_err().to_string();
+        assert!(
+            err.contains("a.log:2") && err.contains("not a log entry"),
+            "{err}"
+        );
         std::fs::remove_dir_all(&dir).ok();
     }
 }
