@@ -256,6 +256,16 @@ mod tests {
         CameraFile::parse(text, Path::new("c.json"))
     }
 
+    /// A camera file saved by a Windows editor (a byte order mark first) reads as without it.
+    #[test]
+    fn a_byte_order_mark_is_read_past() {
+        let path = std::env::temp_dir().join(format!("adjoint-cameras-bom-{}.json", std::process::id()));
+        std::fs::write(&path, "\u{feff}{\"cameras\": [{\"eye\": [1, 2, 3]}]}").unwrap();
+        let f = CameraFile::read(&path).unwrap();
+        assert_eq!(f.eyes(), vec![[1.0, 2.0, 3.0]]);
+        std::fs::remove_file(&path).ok();
+    }
+
     #[test]
     fn ids_index_the_cameras_once_each() {
         let f = parse(r#"{"cameras": [{"id": 1, "eye": [1, 0, 0]}, {"id": 0, "eye": [0, 0, 0]}]}"#).unwrap();

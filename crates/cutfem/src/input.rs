@@ -9,6 +9,8 @@
 //!   byte more, which tells an over-long stream);
 //! - text formats ([`read_text`]: scenes, observation CSVs, OBJ, camera files, logs) refuse a
 //!   NUL byte as soon as it is read: no text file holds one, and `/dev/zero` is nothing else.
+//!   [`read_string`] drops a leading UTF-8 byte order mark (as Windows editors write one), so
+//!   every text format reads the same with or without it.
 //!
 //! Errors are [`std::io::Error`]s (kind `InvalidData`) whose message says what was refused, so
 //! that every reader's "PATH: cause" error stays one line.
@@ -144,13 +146,18 @@ pub fn read_text(path: &Path, max: u64) -> Result<Vec<u8>, Error> {
     Input::open(path)?.text(max)
 }
 
-/// [`read_text`] as a `String` (invalid UTF-8 is an error naming the line).
+/// [`read_text`] as a `String` without a leading byte order mark (invalid UTF-8 is an error
+/// naming the line).
 pub fn read_string(path: &Path, max: u64) -> Result<String, Error> {
-    String::from_utf8(read_text(path, max)?).map_err(|e| {
+    let mut text = String::from_utf8(read_text(path, max)?).map_err(|e| {
         let ok = &e.as_bytes()[..e.utf8_error().valid_up_to()];
         let line = ok.iter().filter(|&&b| b == b'\n').count() + 1;
         invalid(format!("line {line}: not UTF-8 text"))
-    })
+    })?;
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
 }
 
 #[cfg(test)]
@@ -182,6 +189,8 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("line 2: not UTF-8"), "{e}");
+        let bom = read_string(&tmp("bom", "\u{feff}{\"a\": 1}\n".as_bytes()), 100).unwrap();
+        assert_eq!(bom, "{\"a\": 1}\n");
         let e = read(p.parent().unwrap(), 100).unwrap_err().to_string();
         assert!(e.contains("directory"), "{e}");
     }

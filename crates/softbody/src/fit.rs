@@ -253,7 +253,12 @@ pub fn run(args: Args) -> Result<(), String> {
         info,
         evaluation: ev_final,
         model,
-    } = fitted?;
+    } = fitted.map_err(|e| match &earlier {
+        // a resumed fit starts where the log ends: say which log, since that start was not
+        // the scene's
+        Some(log) => format!("{e} (resumed from the last entry of {})", log.display()),
+        None => e.to_string(),
+    })?;
     let final_values = params.values(&model);
     // uncertainty from the Gauss-Newton matrix at the result (one tangent-linear pass; not for
     // the many coefficients of a stiffness field)

@@ -100,6 +100,14 @@ fn fit_recovers_the_truth_and_resumes() {
         "the log is of a fit of poisson,young, this fit is of density,young",
     );
     assert_eq!(std::fs::read(out.join("fit.json")).unwrap(), before);
+    // a log whose last point cannot be simulated: the error says the start came from the log
+    let log = std::fs::read_to_string(out.join("fit.log")).unwrap();
+    let mut last: serde_json::Value = serde_json::from_str(log.lines().last().unwrap()).unwrap();
+    last["x"] = serde_json::json!([1e300, 0.5]);
+    std::fs::write(out.join("fit.log"), format!("{log}{last}\n")).unwrap();
+    let o = run_on("fit", &start, &obs, &out, &["--resume"]);
+    one_line_error(&o, "resumed from the last entry of");
+    assert_eq!(std::fs::read(out.join("fit.json")).unwrap(), before);
 }
 
 #[test]
