@@ -210,10 +210,10 @@ pub fn run(a: Args) -> Result<(), String> {
     let mut effects_after: Vec<String> = d.effects.clone();
     effects_after.push(missing.clone());
     let entry = Entry::now("demo: refit", effects_after, after_values.clone(), ev.rms());
-    history::append(&hist, &entry)?;
     // the report's history picture with the refit
-    let entries = history::read(&hist)?;
-    crate::diagnose_report::write_history_picture(&out.join("history.png"), &entries)?;
+    let recorded = history::record(&hist, &entry);
+    crate::output::warn_all(&recorded.warnings);
+    crate::diagnose_report::write_history_picture(&out.join("history.png"), &recorded.entries)?;
 
     // 5. the table
     let rows = table(&d, ev.rms(), &after_model, &truth.to_model());

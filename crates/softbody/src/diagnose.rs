@@ -165,8 +165,9 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     let mut entry = Entry::now(job.command, d.effects.clone(), d.fitted.clone(), d.rms);
     entry.noise_floor = Some(d.noise_floor);
     entry.missing_effect = d.missing_effect.clone();
-    history::append(&hist_path, &entry)?;
-    let entries = history::read(&hist_path)?;
+    let recorded = history::record(&hist_path, &entry);
+    crate::output::warn_all(&recorded.warnings);
+    let entries = recorded.entries;
 
     // pictures
     let mut sim = sim;
@@ -184,7 +185,8 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
         history: &entries,
     };
     let pictures = crate::diagnose_report::write_pictures(out, &d, &inputs)?;
-    let mut summary = summary_json(&d, &pictures, &hist_path, t0.elapsed().as_secs_f64());
+    let hist = recorded.written.then_some(hist_path.as_path());
+    let mut summary = summary_json(&d, &pictures, hist, t0.elapsed().as_secs_f64());
     summary["stage_seconds"] = stage_seconds(&stages, Instant::now());
     if let Some(v) = discretisation {
         summary["discretisation"] = v;
@@ -197,7 +199,7 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
 }
 
 /// The JSON of a diagnosis (interface.md fields first).
-pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: &Path, seconds: f64) -> Value {
+pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: Option<&Path>, seconds: f64) -> Value {
     let candidates: Vec<Value> = d
         .candidates
         .iter()

@@ -11,7 +11,7 @@
 use crate::problem_args::{Loaded, ProblemArgs};
 use crate::progress;
 use adjoint::cost::Robust;
-use adjoint::diagnosis::history::{append, history_path, Entry};
+use adjoint::diagnosis::history::{history_path, record, Entry};
 use adjoint::fit::{check_observations, scene_problem};
 use adjoint::optim::Optimizer;
 use adjoint::problem::Evaluation;
@@ -301,8 +301,13 @@ pub fn run(args: Args) -> Result<(), String> {
     // the scene's history of models (`diagnose` plots the rms over them)
     let entry = Entry::now("fit", scene.effects(), final_values.clone(), ev_final.rms());
     let hist = history_path(&args.problem.scene);
-    append(&hist, &entry)?;
-    summary["history_file"] = json!(hist);
+    let recorded = record(&hist, &entry);
+    crate::output::warn_all(&recorded.warnings);
+    summary["history_file"] = if recorded.written {
+        json!(hist)
+    } else {
+        Value::Null
+    };
     dir.finish(&mut summary, "fit.json")?;
     if args.json {
         crate::output::print_json(&summary)?;

@@ -55,3 +55,10 @@ macro_rules! note {
         }
     }};
 }
+
+/// Says each of `warnings` on stderr as `warning: ...` (one line each).
+pub fn warn_all(warnings: &[String]) {
+    for w in warnings {
+        crate::note!("warning: {}", error_line(w));
+    }
+}

@@ -12,6 +12,10 @@ fn scene(effects: &str) -> String {
     tiny_bar(8, &format!("[model]\neffects = [{effects}]"))
 }
 
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
 #[test]
 fn diagnose_finds_missing_gravity() {
     let dir = tmp("diagnose", "gravity");
@@ -52,6 +56,39 @@ fn diagnose_finds_missing_gravity() {
     json(&diagnose());
     assert_eq!(std::fs::read_to_string(&hist).unwrap().lines().count(), 2);
     assert!(out.join("history.png").exists());
+    // the history is a by-product: a line cut short by a killed run is left out, said with
+    // its line, and the next entry starts its own line
+    let text = std::fs::read_to_string(&hist).unwrap();
+    std::fs::write(&hist, format!("{text}{}", &text[..text.len() / 4])).unwrap();
+    let o = diagnose();
+    let v = json(&o);
+    assert!(
+        stderr(&o).contains("line 3 is not a history entry"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(v["history"], hist.to_str().unwrap());
+    let lines: Vec<String> = std::fs::read_to_string(&hist)
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    assert_eq!(lines.len(), 4);
+    assert!(serde_json::from_str::<serde_json::Value>(&lines[3]).is_ok());
+    // a history that cannot be written (a folder in its place, as a read-only data folder
+    // would refuse it) costs only the entry, not the report
+    std::fs::remove_file(&hist).unwrap();
+    std::fs::create_dir(&hist).unwrap();
+    std::fs::remove_dir_all(&out).unwrap();
+    let o = diagnose();
+    let v = json(&o);
+    assert!(v["history"].is_null(), "{}", v["history"]);
+    assert!(
+        stderr(&o).contains("the run is not in the scene's history"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(out.join("diagnosis.json").exists() && out.join("history.png").exists());
 }
 
 #[test]

@@ -5,7 +5,7 @@
 
 use crate::Error;
 use serde_json::{json, Value};
-use std::io::Write;
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 /// The history file of a scene: `dir/name.toml` -> `dir/name.history.jsonl`.
@@ -87,38 +87,122 @@ impl Entry {
     }
 }
 
-/// Appends `entry` to `path` (created when missing).
+/// Appends `entry` to `path` (created when missing) as one line, written with one `write`
+/// (runs appending at once do not interleave within a line); after a line cut short by a
+/// killed run it starts a line of its own.
 pub fn append(path: &Path, entry: &Entry) -> Result<(), Error> {
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
+        .read(true)
         .open(path)
         .map_err(|e| Error::io(path, e))?;
-    writeln!(f, "{}", entry.to_json()).map_err(|e| Error::io(path, e))
+    let len = f.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut line = String::new();
+    if len > 0 {
+        let mut last = [0u8; 1];
+        f.seek(SeekFrom::End(-1))
+            .and_then(|_| f.read_exact(&mut last))
+            .map_err(|e| Error::io(path, e))?;
+        if last[0] != b'\n' {
+            line.push('\n');
+        }
+    }
+    line.push_str(&entry.to_json().to_string());
+    line.push('\n');
+    f.write_all(line.as_bytes()).map_err(|e| Error::io(path, e))
 }
 
-/// Reads a history file (missing file: empty). A line that is not a history entry is an error
-/// naming the file and line.
-pub fn read(path: &Path) -> Result<Vec<Entry>, Error> {
+/// A history file's entries, and the numbers of the lines that were not entries (a line cut
+/// short by a killed run, an edit).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct History {
+    /// the entries, in the file's order
+    pub entries: Vec<Entry>,
+    /// 1-based numbers of the lines left out
+    pub bad_lines: Vec<usize>,
+}
+
+/// Reads a history file (missing file: empty); lines that are not history entries are left
+/// out and counted ([`History::bad_lines`]).
+pub fn read(path: &Path) -> Result<History, Error> {
     let text = match cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES) {
         Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(History::default()),
         Err(e) => return Err(Error::io(path, e)),
     };
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
-            serde_json::from_str::<Value>(l)
-                .ok()
-                .and_then(|v| Entry::from_json(&v))
-                .ok_or_else(|| Error::Line {
-                    path: path.to_path_buf(),
-                    line: i + 1,
-                    msg: "not a history entry".into(),
-                })
-        })
-        .collect()
+    let mut h = History::default();
+    for (i, l) in text.lines().enumerate() {
+        if l.trim().is_empty() {
+            continue;
+        }
+        match serde_json::from_str::<Value>(l)
+            .ok()
+            .and_then(|v| Entry::from_json(&v))
+        {
+            Some(e) => h.entries.push(e),
+            None => h.bad_lines.push(i + 1),
+        }
+    }
+    Ok(h)
+}
+
+/// What [`record`] did: the history to show (the file's entries, `entry` last) and what went
+/// wrong with the file, as warnings to say.
+#[derive(Clone, Debug)]
+pub struct Recorded {
+    /// the history with the new entry last
+    pub entries: Vec<Entry>,
+    /// whether the entry is in the file
+    pub written: bool,
+    /// one line each: the file could not be written or read, or had lines that are not entries
+    pub warnings: Vec<String>,
+}
+
+/// Appends `entry` to the history file `path` and reads the history back. The history is a
+/// by-product of a run (its report plots it), so nothing about the file fails the run: a file
+/// that cannot be written (a read-only data folder) or read, or lines that are not entries,
+/// become warnings, and the history shown is what could be read with `entry` last.
+pub fn record(path: &Path, entry: &Entry) -> Recorded {
+    let mut warnings = Vec::new();
+    let written = match append(path, entry) {
+        Ok(()) => true,
+        Err(e) => {
+            warnings.push(format!("the run is not in the scene's history ({e})"));
+            false
+        }
+    };
+    let mut entries = match read(path) {
+        Ok(h) => {
+            if !h.bad_lines.is_empty() {
+                let n = h.bad_lines.len();
+                let which = match n {
+                    1 => format!("line {} is not a history entry", h.bad_lines[0]),
+                    _ => format!(
+                        "{n} lines are not history entries (the first: line {})",
+                        h.bad_lines[0]
+                    ),
+                };
+                warnings.push(format!("{}: {which}; left out", path.display()));
+            }
+            h.entries
+        }
+        Err(e) => {
+            if written {
+                warnings.push(format!("the scene's history could not be read back ({e})"));
+            }
+            Vec::new()
+        }
+    };
+    // read back, the file ends with the entry; else it is shown after what could be read
+    if !written || entries.is_empty() {
+        entries.push(entry.clone());
+    }
+    Recorded {
+        entries,
+        written,
+        warnings,
+    }
 }
 
 /// The current UTC time as `YYYY-MM-DDTHH:MM:SSZ`.
@@ -178,9 +262,44 @@ mod tests {
         e.noise_floor = Some(0.001);
         append(&p, &e).unwrap();
         let r = read(&p).unwrap();
-        assert_eq!(r.len(), 2);
-        assert_eq!(r[1], e);
+        assert_eq!(r.entries.len(), 2);
+        assert_eq!(r.entries[1], e);
+        assert!(r.bad_lines.is_empty());
         std::fs::write(&p, "{\"x\": 1}\n").unwrap();
-        assert!(read(&p).unwrap_err().to_string().contains("a.history.jsonl:1"));
+        assert_eq!(read(&p).unwrap().bad_lines, [1]);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// The history is a by-product: a line cut short by a killed run is left out (and the
+    /// next entry starts its own line), a file that cannot be written costs only the entry.
+    #[test]
+    fn a_broken_or_unwritable_history_costs_the_run_nothing() {
+        let dir = std::env::temp_dir().join(format!("history-broken-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let e = |rms: f64| Entry::now("fit", vec!["gravity".into()], vec![("young".into(), 1.0)], rms);
+        let p = dir.join("torn.history.jsonl");
+        append(&p, &e(0.1)).unwrap();
+        let whole = std::fs::read_to_string(&p).unwrap();
+        std::fs::write(&p, format!("{whole}{}", &whole[..whole.len() / 2])).unwrap();
+        let r = record(&p, &e(0.2));
+        assert!(r.written);
+        assert_eq!(r.entries.iter().map(|e| e.rms).collect::<Vec<_>>(), [0.1, 0.2]);
+        assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
+        assert!(r.warnings[0].contains("line 2"), "{:?}", r.warnings);
+        let h = read(&p).unwrap();
+        assert_eq!((h.entries.len(), h.bad_lines.clone()), (2, vec![2]));
+        // a history that cannot be written (here: a folder in its place)
+        let p = dir.join("folder.history.jsonl");
+        std::fs::create_dir_all(&p).unwrap();
+        let x = e(0.3);
+        let r = record(&p, &x);
+        assert!(!r.written);
+        assert_eq!(r.entries, [x]);
+        assert!(
+            r.warnings[0].contains("not in the scene's history"),
+            "{:?}",
+            r.warnings
+        );
+        std::fs::remove_dir_all(&dir).ok();
     }
 }
