@@ -270,6 +270,9 @@ impl Observations {
     }
 }
 
+/// The column names of the header (any case).
+const KNOWN: [&str; 6] = ["frame", "x", "y", "z", "camera", "weight"];
+
 fn parse_header(header: &str) -> Result<Vec<Column>, String> {
     let mut cols = Vec::new();
     for name in header.split(',') {
@@ -282,10 +285,19 @@ fn parse_header(header: &str) -> Result<Vec<Column>, String> {
             "camera" => Column::Camera,
             "weight" => Column::Weight,
             _ => {
+                let other = [';', '\t', ' ', '|'].into_iter().find(|&c| {
+                    let parts: Vec<&str> = name.split(c).map(str::trim).filter(|p| !p.is_empty()).collect();
+                    parts.len() > 1
+                        && parts
+                            .iter()
+                            .all(|p| KNOWN.contains(&p.to_ascii_lowercase().as_str()))
+                });
                 let hint = if name.parse::<f64>().is_ok() {
-                    " (the header line is missing?)"
+                    " (the header line is missing?)".to_string()
+                } else if let Some(c) = other {
+                    format!(" (columns are separated by commas; this file separates them by {c:?})")
                 } else {
-                    ""
+                    String::new()
                 };
                 return Err(format!(
                     "unknown column {name:?} in the header{hint}; expected {EXPECTED}"
@@ -454,6 +466,14 @@ mod tests {
             ("frame,x,y\n0,1,2\n", "line 1: the header lacks the column \"z\""),
             ("frame,x,y,z,x\n", "line 1: column \"x\" appears twice"),
             ("frame,x,y,z,colour\n", "unknown column \"colour\""),
+            (
+                "frame;x;y;z\n1;0;0;0\n",
+                "unknown column \"frame;x;y;z\" in the header (columns are separated by commas; this file separates them by ';')",
+            ),
+            (
+                "Frame\tX\tY\tZ\n",
+                "this file separates them by '\\t'",
+            ),
             (
                 "frame,x,y,z\n0,1,2,3\n0,1,2\n",
                 "line 3: expected 4 fields, found 3",
