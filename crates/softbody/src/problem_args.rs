@@ -64,7 +64,7 @@ impl ProblemArgs {
     pub fn load(&self) -> Result<Loaded, String> {
         if crate::study_fit::is_study_file(&self.scene) {
             return Err(format!(
-                "{}: a study file (several recordings); `softbody fit` and `softbody diagnose` take studies, this command takes one scene",
+                "{}: a study file (several recordings) where one scene is expected; `softbody fit` and `softbody diagnose` take studies, other commands and a study's recordings take scenes",
                 self.scene.display()
             ));
         }

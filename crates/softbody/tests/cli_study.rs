@@ -179,6 +179,15 @@ fn bad_studies_and_scene_flags_are_one_line_errors() {
             vec![],
             "study.optimizer: unknown optimizer `adam`",
         ),
+        // a recording whose scene is a study (here: the study itself)
+        (
+            path(
+                "k.toml",
+                &good.replace("scene = \"swing.toml\"", "scene = \"k.toml\""),
+            ),
+            vec![],
+            "k.toml: a study file (several recordings) where one scene is expected",
+        ),
     ];
     let out = dir.join("out");
     for (study, flags, needle) in cases {
