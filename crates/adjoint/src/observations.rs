@@ -270,39 +270,39 @@ impl Observations {
     }
 }
 
-/// The column names of the header (any case).
-const KNOWN: [&str; 6] = ["frame", "x", "y", "z", "camera", "weight"];
+/// The column a header name (any case) names.
+fn column_named(name: &str) -> Option<Column> {
+    Some(match name.to_ascii_lowercase().as_str() {
+        "frame" => Column::Frame,
+        "x" => Column::X,
+        "y" => Column::Y,
+        "z" => Column::Z,
+        "camera" => Column::Camera,
+        "weight" => Column::Weight,
+        _ => return None,
+    })
+}
 
 fn parse_header(header: &str) -> Result<Vec<Column>, String> {
     let mut cols = Vec::new();
     for name in header.split(',') {
         let name = name.trim();
-        let col = match name.to_ascii_lowercase().as_str() {
-            "frame" => Column::Frame,
-            "x" => Column::X,
-            "y" => Column::Y,
-            "z" => Column::Z,
-            "camera" => Column::Camera,
-            "weight" => Column::Weight,
-            _ => {
-                let other = [';', '\t', ' ', '|'].into_iter().find(|&c| {
-                    let parts: Vec<&str> = name.split(c).map(str::trim).filter(|p| !p.is_empty()).collect();
-                    parts.len() > 1
-                        && parts
-                            .iter()
-                            .all(|p| KNOWN.contains(&p.to_ascii_lowercase().as_str()))
-                });
-                let hint = if name.parse::<f64>().is_ok() {
-                    " (the header line is missing?)".to_string()
-                } else if let Some(c) = other {
-                    format!(" (columns are separated by commas; this file separates them by {c:?})")
-                } else {
-                    String::new()
-                };
-                return Err(format!(
-                    "unknown column {name:?} in the header{hint}; expected {EXPECTED}"
-                ));
-            }
+        let Some(col) = column_named(name) else {
+            // several known names joined by another separator
+            let other = [';', '\t', ' ', '|'].into_iter().find(|&c| {
+                let parts: Vec<&str> = name.split(c).map(str::trim).filter(|p| !p.is_empty()).collect();
+                parts.len() > 1 && parts.iter().all(|p| column_named(p).is_some())
+            });
+            let hint = if name.parse::<f64>().is_ok() {
+                " (the header line is missing?)".to_string()
+            } else if let Some(c) = other {
+                format!(" (columns are separated by commas; this file separates them by {c:?})")
+            } else {
+                String::new()
+            };
+            return Err(format!(
+                "unknown column {name:?} in the header{hint}; expected {EXPECTED}"
+            ));
         };
         if cols.contains(&col) {
             return Err(format!("column {name:?} appears twice in the header"));

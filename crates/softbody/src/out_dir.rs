@@ -148,8 +148,9 @@ pub struct OutDir {
     /// temporary folders of killed runs, newest first
     stale: Vec<PathBuf>,
     committed: bool,
-    /// `None` for a folder inside another run's temporary folder ([`OutDir::nested`])
-    _lock: Option<Lock>,
+    /// held to the end of the run; `None` for a folder inside another run's temporary folder
+    /// ([`OutDir::nested`]), which is made in place
+    lock: Option<Lock>,
 }
 
 impl OutDir {
@@ -184,7 +185,7 @@ impl OutDir {
             tmp,
             stale,
             committed: false,
-            _lock: Some(lock),
+            lock: Some(lock),
         })
     }
 
@@ -207,7 +208,7 @@ impl OutDir {
             tmp: path,
             stale: Vec::new(),
             committed: false,
-            _lock: None,
+            lock: None,
         })
     }
 
@@ -268,7 +269,7 @@ impl OutDir {
     pub fn commit(mut self) -> Result<(), String> {
         let marker = self.tmp.join(MARKER);
         std::fs::write(&marker, format!("{}\n", std::process::id())).map_err(|e| err(&marker, e))?;
-        if self._lock.is_none() {
+        if self.lock.is_none() {
             // nested: already in place inside the outer temporary folder
             self.committed = true;
             return Ok(());

@@ -34,9 +34,14 @@ pub fn values_json(values: &[(String, f64)]) -> Value {
 /// line without its newline that is not JSON is an entry cut short when its run was killed:
 /// it is left out (the entry before it is the state to continue from).
 pub fn read_log(path: &Path) -> Result<Vec<Value>, Error> {
+    load_log(path).map(|(entries, _)| entries)
+}
+
+/// [`parse_log`] of the file at `path`.
+fn load_log(path: &Path) -> Result<(Vec<Value>, String), Error> {
     let text =
         cutfem::input::read_string(path, cutfem::input::MAX_DATA_BYTES).map_err(|e| Error::io(path, e))?;
-    parse_log(&text, path).map(|(entries, _)| entries)
+    parse_log(&text, path)
 }
 
 /// The entries of log text and the text they stand in (`text` less a torn last line, with a
@@ -108,9 +113,7 @@ impl FitLog {
             .map_err(|e| Error::io(path, e))?;
         let mut history = Vec::new();
         if let Some(earlier) = earlier {
-            let text = cutfem::input::read_string(earlier, cutfem::input::MAX_DATA_BYTES)
-                .map_err(|e| Error::io(earlier, e))?;
-            let (entries, whole) = parse_log(&text, earlier)?;
+            let (entries, whole) = load_log(earlier)?;
             if let Some(last) = entries.last() {
                 *x0 = resume_point(last, names, x0.len())
                     .map_err(|e| Error::Invalid(format!("{}: {e}", earlier.display())))?;
