@@ -261,7 +261,7 @@ pub fn contact_value(
     let k = g.stiffness;
     let (s, s1) = g.law(d);
     let force = match g.scheme {
-        ContactScheme::Implicit => -k * s - theta * k * s1 * n.dot(u_next - u),
+        ContactScheme::Implicit | ContactScheme::Softmin => -k * s - theta * k * s1 * n.dot(u_next - u),
         ContactScheme::Thesis => -k * s - theta * dt * k * s1 * n.dot(v),
         ContactScheme::Penalty => {
             let d1 = g.distance(x0 + u_next);
@@ -310,7 +310,7 @@ pub fn contact_adjoint(
     // L = dt Lambda (-k S(d) - c(d) q) with q the scheme's rate term
     let s2 = softmin0_second(d, g.softness);
     let (q_vec, coef) = match g.scheme {
-        ContactScheme::Implicit | ContactScheme::Penalty => (u_next - u, theta * k),
+        ContactScheme::Implicit | ContactScheme::Softmin | ContactScheme::Penalty => (u_next - u, theta * k),
         ContactScheme::Thesis => (v, theta * dt * k),
     };
     let q = n.dot(q_vec);
@@ -325,7 +325,7 @@ pub fn contact_adjoint(
     };
     out.normal = lam * (dt * inner) + p * dl_dd + q_vec * dl_dq;
     match g.scheme {
-        ContactScheme::Implicit | ContactScheme::Penalty => {
+        ContactScheme::Implicit | ContactScheme::Softmin | ContactScheme::Penalty => {
             out.u = out.u - n * dl_dq;
             out.u_next = n * dl_dq;
         }

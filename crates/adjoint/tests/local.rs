@@ -110,6 +110,7 @@ fn contact_adjoint_matches_central_differences() {
         ContactScheme::Implicit,
         ContactScheme::Thesis,
         ContactScheme::Penalty,
+        ContactScheme::Softmin,
     ] {
         for trial in 0..20 {
             let g = Ground {
@@ -250,8 +251,8 @@ fn small_sim(scheme: ContactScheme) -> Simulation {
         ground: Some(Ground {
             normal: Vec3::new(0.05, 1.0, -0.03),
             height: 0.16,
-            // per unit area for the penalty scheme (about 1e3 per crossing here)
-            stiffness: if scheme == ContactScheme::Penalty {
+            // per unit area for the penalty and softmin schemes (about 1e3 per crossing here)
+            stiffness: if matches!(scheme, ContactScheme::Penalty | ContactScheme::Softmin) {
                 3e5
             } else {
                 1e3
@@ -277,6 +278,7 @@ fn step_adjoint_matches_central_differences() {
         ContactScheme::Implicit,
         ContactScheme::Thesis,
         ContactScheme::Penalty,
+        ContactScheme::Softmin,
     ] {
         let mut sim = small_sim(scheme);
         let n = sim.grid.dofs();

@@ -116,8 +116,8 @@ pub struct GroundSection {
     /// softmin alpha
     #[serde(default = "ground_alpha")]
     pub softness: f64,
-    /// time discretization of the contact force: "implicit" (default), "thesis" or "penalty"
-    /// (`stiffness` then per unit area)
+    /// the contact law and its time discretization: "implicit" (default), "thesis" (softmin
+    /// springs per crossing), "softmin" or "penalty" (`stiffness` per unit area)
     #[serde(default)]
     pub scheme: crate::fem::collision::ContactScheme,
 }

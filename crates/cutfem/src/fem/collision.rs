@@ -25,6 +25,10 @@
 //!   `1-t`, `t`), and its theta-weighted part `theta J u'` moves into the Newmark matrix:
 //!   `A += theta dt K_c`, `b += dt (f(u) - theta J u)`, `K_c = -J` (positive semi-definite).
 //!   Stable for stiff springs.
+//! * `Softmin`: the `Implicit` scheme's softmin law and linearization with each crossing's
+//!   spring per unit area, `k a_c` (the area `a_c` below): `stiffness` is a pressure per unit
+//!   penetration whatever the grid, as with `Penalty`, and the law still pushes before contact
+//!   (`k ln 2 / alpha` per unit area at `d = 0`).
 //! * `Penalty`: a penalty per unit area, iterated to convergence within the step, with the C2
 //!   law [`penalty0`] in place of the softmin (no push before contact; `delta = 1 / alpha`). The spring of
 //!   a crossing stands for the part of the body's (rest) surface around it: a surface with unit
@@ -62,6 +66,8 @@ pub enum ContactScheme {
     Thesis,
     /// a penalty per unit area, Newton-iterated within each step
     Penalty,
+    /// the softmin law of `Implicit` with springs per unit area (`k a_c`, as `Penalty`'s)
+    Softmin,
 }
 
 /// Newton iterations of the [`ContactScheme::Penalty`] step stop when no crossing's distance
@@ -78,7 +84,8 @@ pub struct Ground {
     pub normal: Vec3<f64>,
     /// offset: the ground is `n . x >= height`
     pub height: f64,
-    /// spring stiffness `k`: per crossing, or per unit area with [`ContactScheme::Penalty`]
+    /// spring stiffness `k`: per crossing, or per unit area with [`ContactScheme::Penalty`] and
+    /// [`ContactScheme::Softmin`]
     pub stiffness: f64,
     /// softmin sharpness `alpha`
     pub softness: f64,
@@ -123,10 +130,17 @@ impl Ground {
         self.distance(c.position(grid, u))
     }
 
-    /// The spring constant of crossing `c`: `k`, or `k a_c` with [`ContactScheme::Penalty`].
+    /// Whether `stiffness` is per unit area (each crossing's spring `k a_c`) rather than per
+    /// crossing.
+    pub fn stiffness_per_area(&self) -> bool {
+        matches!(self.scheme, ContactScheme::Penalty | ContactScheme::Softmin)
+    }
+
+    /// The spring constant of crossing `c`: `k`, or `k a_c` per unit area
+    /// ([`ContactScheme::Penalty`], [`ContactScheme::Softmin`]).
     pub fn spring(&self, c: &Crossing) -> f64 {
         match self.scheme {
-            ContactScheme::Penalty => self.stiffness * c.area,
+            ContactScheme::Penalty | ContactScheme::Softmin => self.stiffness * c.area,
             ContactScheme::Implicit | ContactScheme::Thesis => self.stiffness,
         }
     }
@@ -208,7 +222,7 @@ impl Ground {
     pub fn contact_theta(&self, theta: f64) -> f64 {
         match self.scheme {
             ContactScheme::Penalty => 1.0,
-            ContactScheme::Implicit | ContactScheme::Thesis => theta,
+            ContactScheme::Implicit | ContactScheme::Softmin | ContactScheme::Thesis => theta,
         }
     }
 
@@ -218,7 +232,7 @@ impl Ground {
     pub fn law(&self, d: f64) -> (f64, f64) {
         match self.scheme {
             ContactScheme::Penalty => (penalty0(d, self.softness), penalty0_derivative(d, self.softness)),
-            ContactScheme::Implicit | ContactScheme::Thesis => {
+            ContactScheme::Implicit | ContactScheme::Softmin | ContactScheme::Thesis => {
                 (softmin0(d, self.softness), softmin0_derivative(d, self.softness))
             }
         }
@@ -329,7 +343,7 @@ pub fn add_ground_forces(
                 let f_next = f_now + dt * (-slope * ddt);
                 theta * f_next + (1.0 - theta) * f_now
             }
-            ContactScheme::Implicit => {
+            ContactScheme::Implicit | ContactScheme::Softmin => {
                 // f(u) - theta J u with J u = -slope n (n . (w_a u_a + w_b u_b))
                 if slope > 0.0 {
                     stiffness.push((*c, slope));

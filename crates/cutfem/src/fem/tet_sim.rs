@@ -67,11 +67,15 @@ impl TetSimulation {
     /// initial velocity (zero at fixed nodes).
     pub fn new(mesh: TetMesh, model: Model) -> Result<Self, Error> {
         model.validate()?;
-        if model.ground.is_some_and(|g| g.scheme == ContactScheme::Penalty) {
-            return Err(Error::Invalid(
-                "ground.scheme: \"penalty\" is not available on the tetrahedral baseline (use \"implicit\" or \"thesis\")"
-                    .into(),
-            ));
+        if let Some(g) = model.ground.filter(|g| g.stiffness_per_area()) {
+            let name = if g.scheme == ContactScheme::Penalty {
+                "penalty"
+            } else {
+                "softmin"
+            };
+            return Err(Error::Invalid(format!(
+                "ground.scheme: \"{name}\" (springs per unit area) is not available on the tetrahedral baseline (use \"implicit\" or \"thesis\")"
+            )));
         }
         if model.friction.is_some() {
             return Err(Error::Invalid(
@@ -242,7 +246,7 @@ impl TetSimulation {
             let mag = match ground.scheme {
                 ContactScheme::Thesis => theta * (f_now - dt * slope * n.dot(vs[i])) + (1.0 - theta) * f_now,
                 // the penalty scheme is refused by `new`
-                ContactScheme::Implicit | ContactScheme::Penalty => {
+                ContactScheme::Implicit | ContactScheme::Softmin | ContactScheme::Penalty => {
                     if slope > 0.0 {
                         stiffness.push((d, slope));
                     }
