@@ -6,7 +6,6 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from skfem import Basis
 from skfem.models.elasticity import lame_parameters
 
@@ -20,12 +19,13 @@ import drawmesh as dm
 # ---------------------------------------------------------------------------
 class DBody(g.Body):
     """generate.Body for a drawn scenario: its mesh (Q2 hexahedra or curved P2 tetrahedra),
-    clamps (boundary nodes inside the clamp boxes are fixed), gravity, wind and drag."""
+    clamps (all nodes of the boundary facets inside a clamp box are fixed), gravity, wind and
+    drag."""
 
     def __init__(self, sc, level):
         t0 = time.time()
         self.case = sc
-        self.mesh, self.elem = make_mesh(sc, level)
+        self.mesh, self.elem, self.mesh_info = make_mesh(sc, level)
         self.sb = Basis(self.mesh, self.elem)
         self.nS = self.sb.N
         self.N = 3 * self.nS
@@ -37,18 +37,28 @@ class DBody(g.Body):
         self.F = self.M @ np.tile(np.asarray(sc["gravity"], float), self.nS)
         self.bfacets = self.mesh.boundary_facets()
         self._setup_facets()
-        # clamps: boundary nodes inside a clamp box
-        bd = np.unique(self.sb.get_dofs(facets=self.bfacets).all())
-        inside = np.zeros(self.nS, bool)
+        # clamps: the boundary facets lying inside a clamp box, all their nodes fixed
+        self.facet_dofs = facet_dofs(self)
+        X = self.doflocs[self.facet_dofs]                      # (nf, nfd, 3)
+        depth = np.full(X.shape[:2], -np.inf)                  # how deep inside the nearest box
         for lo, hi in sc["clamp_boxes"]:
-            X = self.doflocs[bd]
-            inside[bd[np.all((X >= np.asarray(lo) - 1e-12) & (X <= np.asarray(hi) + 1e-12), axis=1)]] = True
+            d = np.minimum(X - np.asarray(lo), np.asarray(hi) - X).min(axis=2)
+            depth = np.maximum(depth, d)
+        self.clamped_facet = np.all(depth >= -CLAMP_TOL, axis=1)
+        sd = np.unique(self.facet_dofs[self.clamped_facet])
+        # the mesh conforms to the boxes: every boundary node inside a box is a node of a
+        # facet inside it (the earlier rule "boundary nodes inside the box" fixes the same)
+        inside = np.unique(self.facet_dofs[depth >= -CLAMP_TOL])
+        assert np.array_equal(inside, sd), "the mesh does not conform to the clamp boxes"
         if sc["family"] == "hex" and sc["clamp_faces"]:      # exactly the faces' nodes
-            X = self.doflocs[inside]
-            assert np.any([np.abs(X[:, ax] - val) < 1e-9 for ax, val in sc["clamp_faces"]], axis=0).all()
-        sd = np.nonzero(inside)[0]
-        # nodal dofs are the mesh vertices: a facet is clamped when all its corners are
-        self.clamped_facet = np.all(inside[self.mesh.facets[:, self.bfacets]], axis=0)
+            assert np.any([np.abs(self.doflocs[sd, ax] - val) < 1e-9 for ax, val in sc["clamp_faces"]],
+                          axis=0).all()
+        self.clamp_area = float(hd.surface_mass(self, self.bfacets[self.clamped_facet]).sum() / 3) \
+            if self.clamped_facet.any() else 0.0
+        if self.mesh_info.get("clamp_area") is not None and sc["clamp_boxes"]:
+            ca = self.mesh_info["clamp_area"]
+            assert abs(self.clamp_area - ca) < 0.1 * ca, (self.clamp_area, ca)      # coarsest level: 5%
+            assert self.clamped_facet.sum() == self.mesh_info["clamp_facets"]
         self.fixed = np.sort(np.concatenate([3 * sd + c for c in range(3)])) if len(sd) else np.zeros(0, int)
         self.free = np.setdiff1d(np.arange(self.N), self.fixed)
         # wind: uniform traction t on the whole surface, f_i = t int N_i dA; drag matrix c S
@@ -64,11 +74,27 @@ class DBody(g.Body):
         self.setup_seconds = time.time() - t0
 
 
+CLAMP_TOL = 1e-6
+
+
 def make_mesh(sc, level):
     spec = sc["mesh"][level]
     if sc["family"] == "hex":
-        return dm.box_mesh(sc["shape"], spec["cells"], spec["grade"], spec.get("q", 1.5))
-    return dm.gmsh_mesh(sc["shape"], spec["h"])
+        return dm.box_mesh(sc["shape"], spec["cells"], spec["grade"], spec.get("q", 1.5)) + ({},)
+    return dm.gmsh_mesh(sc["shape"], spec["h"], sc["clamp_boxes"], spec.get("curvature_scale", 1.0))
+
+
+def facet_dofs(body):
+    """(n boundary facets, dofs per facet): the scalar dofs of each boundary facet (corner,
+    mid-edge and, for Q2, face nodes): the element dofs whose reference location lies on
+    the facet's reference plane."""
+    R = np.asarray(body.elem.doflocs, float)                    # (Nbfun, 3)
+    n = np.cross(body.f_e1, body.f_e2)
+    on = np.abs(np.einsum("fd,ifd->fi", n, R[:, None, :] - body.f_orig[None])) < 1e-12
+    per = on.sum(axis=1)
+    assert np.all(per == per[0]), "facets with different dof counts"
+    loc = np.nonzero(on)[1].reshape(len(on), per[0])
+    return body.sb.element_dofs[loc, body.f_elem[:, None]]
 
 
 def rigid_velocity(body, v0, w, c):
@@ -191,7 +217,44 @@ def svk_force(body):
         FtdF = mul(tr(Fd), dF)
         dE = 0.5 * (FtdF + tr(FtdF))
         return nodal(mul(dF, stress(green(Fd))) + mul(Fd, stress(dE)))
+    gq = np.ascontiguousarray(G.transpose(2, 3, 0, 1))                 # (e, q, i, I)
+    wq = sb.dx                                                          # (e, q)
+    rows = (3 * dofs[:, :, None] + np.arange(3)).reshape(nel, 3 * nloc)
+    R = np.broadcast_to(rows[:, :, None], (nel, 3 * nloc, 3 * nloc)).reshape(-1)
+    Cc = np.broadcast_to(rows[:, None, :], (nel, 3 * nloc, 3 * nloc)).reshape(-1)
+    I3 = np.eye(3)
+    # the CSR pattern once; each assembly sums the element entries into it (bincount)
+    pattern = sp.csr_matrix((np.arange(1, len(R) + 1, dtype=float), (R, Cc)), shape=(body.N, body.N))
+    pattern.sum_duplicates()
+    pattern.sort_indices()
+    slot = np.empty(len(R), int)
+    key = R.astype(np.int64) * body.N + Cc
+    order = np.argsort(key, kind="stable")
+    first = np.r_[True, key[order][1:] != key[order][:-1]]
+    slot[order] = np.cumsum(first) - 1
+    assert len(pattern.data) == slot.max() + 1
+
+    def matrix(u):
+        """The assembled tangent df/du (vector dofs 3 i + a).  With dP_aI / dF_bJ = delta_ab S_JI
+        + lam F_aI F_bJ + mu (F_aJ F_bI + (F F')_ab delta_IJ) and v_ia = (g F')_ia (g: grad N_i):
+        K_iajb = int delta_ab (g S g')_ij + lam v_ia v_jb + mu v_ib v_ja + mu (F F')_ab (g g')_ij,
+        with the force's quadrature, one quadrature point at a time."""
+        Fd = eye + grad(u)
+        Fp = Fd.transpose(2, 0, 1).reshape(nel, nq, 3, 3)
+        Sp = stress(green(Fd)).transpose(2, 0, 1).reshape(nel, nq, 3, 3)
+        w = wq[:, :, None, None]
+        v = np.matmul(gq, np.swapaxes(Fp, 2, 3))                        # (e, q, i, a)
+        X = np.einsum("eqia,eqjb->eiajb", v * w, v)                     # int v_ia v_jb
+        GG = np.matmul(gq * w, np.swapaxes(gq, 2, 3))                   # (e, q, i, j)
+        C = np.matmul(Fp, np.swapaxes(Fp, 2, 3))                        # F F'
+        Ke = np.einsum("eqij,eqab->eiajb", GG, mu * C)                 # int (F F')_ab (g g')_ij
+        Ke += lam * X + mu * X.transpose(0, 1, 4, 3, 2)
+        Y = np.einsum("eqiJ,eqjJ->eij", np.matmul(gq, Sp) * w, gq)      # int (g S g')_ij
+        Ke += Y[:, :, None, :, None] * I3[None, None, :, None, :]
+        return sp.csr_matrix((np.bincount(slot, Ke.reshape(-1), len(pattern.data)), pattern.indices,
+                              pattern.indptr), shape=(body.N, body.N))
     force.tangent = tangent
+    force.matrix = matrix
     return force
 
 
@@ -207,7 +270,18 @@ def check_svk(body, force):
     tan = force.tangent(u1, d)
     rt = float(np.linalg.norm(fd - tan) / np.linalg.norm(tan))
     assert rt < 1e-6, rt
-    return dict(linearisation_remainder_ratio=float(rel[0] / rel[1]), tangent_vs_fd=rt)
+    # the assembled tangent: K at u = 0, the tangent's action at u1
+    K0 = force.matrix(np.zeros(body.N))
+    rk = float(abs(K0 - body.K).max() / abs(body.K).max())
+    assert rk < 1e-10, rk
+    rm = float(np.linalg.norm(force.matrix(u1) @ d - tan) / np.linalg.norm(tan))
+    assert rm < 1e-10, rm
+    # the force against the linear K at a small displacement (max |u| 1e-3 of the nodes)
+    us = 1e-3 * du / np.abs(du).max()
+    small = float(np.linalg.norm(force(us) - body.K @ us) / np.linalg.norm(body.K @ us))
+    return dict(linearisation_remainder_ratio=float(rel[0] / rel[1]), tangent_vs_fd=rt,
+                force_vs_linear_small=small,
+                assembled_tangent_at_zero_vs_K=rk, assembled_tangent_vs_tangent=rm)
 
 
 # ---------------------------------------------------------------------------
@@ -242,27 +316,27 @@ def simulate(body, sc, substeps, log=print, cap=None):
     u = np.zeros(len(I))
     frames = [np.zeros((body.nS, 3))]
     iterations, contact_steps, min_watch, depth = 0, 0, np.inf, []
+    tfac, refactors = fac, 0
     energy = []
     for n in range(sc["steps"] * substeps):
         rhs = F + M @ (c0 * u + (4.0 / h) * v + a) + C @ (c1 * u + v)
         if force is None:
             un = fac.solve(rhs)
-        else:
-            un = fac.solve(rhs - f_int(u) + K @ u)
-            for _ in range(30):
+        else:       # modified Newton: the factor of the assembled tangent, refreshed when slow
+            un = u + h * v + 0.5 * h * h * a                            # predictor
+            r = c0 * (M @ un) + c1 * (C @ un) + f_int(un) - rhs
+            rn, tol = np.linalg.norm(r), 1e-9 * np.linalg.norm(F)
+            for k in range(60):
+                if rn <= tol:
+                    break
+                un = un - tfac.solve(r)
                 r = c0 * (M @ un) + c1 * (C @ un) + f_int(un) - rhs
-                if np.linalg.norm(r) <= 1e-9 * np.linalg.norm(F):
-                    break
-                U = g.u_full(body, un)
-                T = spla.LinearOperator((len(I), len(I)), dtype=float,
-                                        matvec=lambda d: c0 * (M @ d) + c1 * (C @ d)
-                                        + force.tangent(U, g.u_full(body, d))[I])
-                P = spla.LinearOperator((len(I), len(I)), dtype=float, matvec=fac.solve)
-                du, _ = spla.gmres(T, r, M=P, rtol=1e-3, atol=0.0, restart=40, maxiter=3)
-                un = un - du
+                rn, rn_old = np.linalg.norm(r), rn
                 iterations += 1
-                if np.abs(du).max() <= 1e-12:
-                    break
+                if rn > 0.1 * rn_old and rn > tol:
+                    KT = force.matrix(g.u_full(body, un))[I][:, I]
+                    tfac = g.Factor(c0 * M + c1 * C + KT)
+                    refactors += 1
             else:
                 raise RuntimeError(f"substep {n}: Newton did not converge")
         if contact is not None:
@@ -289,6 +363,8 @@ def simulate(body, sc, substeps, log=print, cap=None):
                 energy.append(0.5 * v @ (M @ v) + 0.5 * u @ (K @ u) - F @ u)
     info = dict(substeps=substeps, substep=h, seconds=round(time.time() - t0, 2),
                 free_dofs=int(len(I)), newton_iterations=int(iterations))
+    if force is not None:
+        info["tangent_factorisations"] = refactors
     if energy and not (t["damping_mass"] or t["damping_stiffness"] or body.Cdrag is not None
                        or contact is not None):     # conservative: Newmark keeps the energy
         e0 = 0.5 * v0_energy(M, sc, body, I)
@@ -301,7 +377,8 @@ def simulate(body, sc, substeps, log=print, cap=None):
                     final_frames_max_penetration=float(per_frame[-tail:].max()),
                     lowest_non_candidate_height=float(min_watch))
     log(f"    {sc['steps']}x{substeps} substeps in {info['seconds']:.1f}s"
-        + (f", {iterations} Newton iterations" if iterations else ""))
+        + (f", {iterations} Newton iterations" if iterations else "")
+        + (f", {refactors} tangent factorisations" if force is not None else ""))
     return np.array(frames), info
 
 

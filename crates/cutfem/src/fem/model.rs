@@ -526,9 +526,10 @@ pub fn thesis_cuboid(ground: bool) -> (crate::shapes::Shape, Model) {
         ground: ground.then_some(Ground {
             normal: Vec3::new(0.0, 1.0, 0.0),
             height: 0.75,
+            // the thesis' law: springs per crossing
             stiffness: 1.0e4,
             softness: 100.0,
-            scheme: Default::default(),
+            scheme: super::collision::ContactScheme::Implicit,
         }),
         dt: 0.01,
         theta: 0.6,
