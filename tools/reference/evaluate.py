@@ -251,8 +251,9 @@ def pct(a, b):
 def summary_table(rows):
     variants = sorted({r["variant"] for r in rows}, key=lambda v: (v != "default", v))
     out = ["| variant | draws | at the truth within target | median ratio | worst | "
-           "E within 3% | nu within 0.03 (se < 0.01) | all within 3 se | errors |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "E within 3% | E within 3% (se < 1%) | nu within 0.03 (se < 0.01) | "
+           "all within 3 se | errors |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for v in variants:
         rs = [r for r in rows if r["variant"] == v]
         ok = [r for r in rs if "ratio_truth" in r]
@@ -261,14 +262,17 @@ def summary_table(rows):
         fitted = [r for r in ok if "young" in r]
         checks = [fit_checks(r) for r in fitted]
         e_ok = sum(c[0] for c in checks)
+        e_det = [c[0] for c, r in zip(checks, fitted)
+                 if r.get("se_young") is not None and r["se_young"] < 0.01 * r["truth"]["young"]]
         nus = [c[1] for c in checks if c[1] is not None]
         z_ok = sum(c[2] for c in checks)
         errs = len(rs) - len(ok) + sum("fit_error" in r for r in ok)
         out.append(f"| {v} | {len(rs)} | {pct(within, len(ok))} | "
                    f"{np.median(ratios):.3f} | {max(ratios):.3f} | "
-                   f"{pct(e_ok, len(fitted))} | {pct(sum(nus), len(nus))} | "
+                   f"{pct(e_ok, len(fitted))} | {pct(sum(e_det), len(e_det))} | "
+                   f"{pct(sum(nus), len(nus))} | "
                    f"{pct(z_ok, len(fitted))} | {errs} |" if ratios else
-                   f"| {v} | {len(rs)} | - | - | - | - | - | - | {errs} |")
+                   f"| {v} | {len(rs)} | - | - | - | - | - | - | - | {errs} |")
     return "\n".join(out)
 
 
@@ -294,8 +298,8 @@ def by_table(rows, key, variants):
 
 def per_draw_table(rows, variants):
     names = sorted({r["name"] for r in rows})
-    out = ["| draw | geometry | clamp | motion | effects | obs | sigma | " + " | ".join(variants)
-           + " |", "|---|---|---|---|---|---|---|" + "---|" * len(variants)]
+    out = ["| draw | geometry | clamp | motion | effects | obs | sigma | reference converged | "
+           + " | ".join(variants) + " |", "|---|---|---|---|---|---|---|---|" + "---|" * len(variants)]
     for n in names:
         rs = {r["variant"]: r for r in rows if r["name"] == n}
         r0 = next(iter(rs.values()))
@@ -310,12 +314,15 @@ def per_draw_table(rows, variants):
                 c = f"{r['ratio_truth']:.3f}"
                 if "young" in r:
                     t = r["truth"]
-                    c += (f"; E {100 * (r['young'] / t['young'] - 1):+.1f}%, "
-                          f"nu {r['poisson'] - t['poisson']:+.3f}")
+                    se_e = "-" if r["se_young"] is None else f"{100 * r['se_young'] / t['young']:.1f}%"
+                    se_nu = "-" if r["se_poisson"] is None else f"{r['se_poisson']:.3f}"
+                    c += (f"; E {100 * (r['young'] / t['young'] - 1):+.1f}% (se {se_e}), "
+                          f"nu {r['poisson'] - t['poisson']:+.3f} (se {se_nu})")
                 cells.append(c)
         eff = ",".join(r0["effects"]) or "-"
+        conv = {True: "yes", False: "no"}.get(r0.get("converged"), "-")
         out.append(f"| {n} | {r0['geometry']} | {r0['clamp']} | {r0['motion']} | {eff} | "
-                   f"{r0['observation']} | {r0['sigma']} | " + " | ".join(cells) + " |")
+                   f"{r0['observation']} | {r0['sigma']} | {conv} | " + " | ".join(cells) + " |")
     return "\n".join(out)
 
 
