@@ -112,6 +112,16 @@ fn the_penalty_scheme_from_a_scene_lands_a_sphere() {
     assert!(err.contains("ground.scheme"), "{err}");
 }
 
+/// The grid of a box of half-sizes `half` centred at `c` (cells of `h`, in [-0.35, 0.35]^3).
+fn flat_box_grid(h: f64, half: [f64; 3], c: [f64; 3]) -> Grid {
+    let sdf = sample([-0.35; 3], [0.35; 3], h, 2, |p| {
+        let q: [f64; 3] = std::array::from_fn(|d| (p[d] - c[d]).abs() - half[d]);
+        let outside = q.iter().map(|x| x.max(0.0).powi(2)).sum::<f64>().sqrt();
+        outside + q[0].max(q[1]).max(q[2]).min(0.0)
+    });
+    Grid::new(sdf).unwrap()
+}
+
 /// Where the ground pushes (`GroundPush`), on a box whose flat bottom face is placed by a rigid
 /// translation: the penalty law pushes only the touching bottom, with `k A (p - delta / 2)` at
 /// depth `p` (`A` the area its crossings stand for), at distance `-p`; the softmin law (per crossing) pushes a
@@ -124,12 +134,7 @@ fn the_ground_push_says_where_the_contact_law_pushes() {
     let (h, half) = (0.02, [0.3, 0.05, 0.2]);
     // off the grid's nodes by fractions of a cell, so that no face lies on a node layer
     let c = [0.0031, 0.0003, -0.0047];
-    let sdf = sample([-0.35; 3], [0.35; 3], h, 2, |p| {
-        let q: [f64; 3] = std::array::from_fn(|d| (p[d] - c[d]).abs() - half[d]);
-        let outside = q.iter().map(|x| x.max(0.0).powi(2)).sum::<f64>().sqrt();
-        outside + q[0].max(q[1]).max(q[2]).min(0.0)
-    });
-    let grid = Grid::new(sdf).unwrap();
+    let grid = flat_box_grid(h, half, c);
     let cs = crossings(&grid);
     let bottom = c[1] - half[1];
     // a rigid translation putting the bottom face at height `y`
@@ -256,12 +261,7 @@ fn the_softmin_law_per_area_pushes_alike_at_every_resolution() {
     let exact = per_area * 4.0 * half[0] * half[2];
     let mut forces = Vec::new();
     for h in [0.02, 0.01, 0.005] {
-        let sdf = sample([-0.35; 3], [0.35; 3], h, 2, |p| {
-            let q: [f64; 3] = std::array::from_fn(|d| (p[d] - c[d]).abs() - half[d]);
-            let outside = q.iter().map(|x| x.max(0.0).powi(2)).sum::<f64>().sqrt();
-            outside + q[0].max(q[1]).max(q[2]).min(0.0)
-        });
-        let grid = Grid::new(sdf).unwrap();
+        let grid = flat_box_grid(h, half, c);
         let cs = crossings(&grid);
         let bottom = c[1] - half[1];
         let area: f64 = cs
