@@ -125,20 +125,7 @@ class PlaneContact(g.Contact):
         fh = np.einsum("d,dvf->vf", self.n, mesh.p[:, mesh.facets[:, body.bfacets]])
         cand = np.nonzero(fh.max(axis=0) < hmin + ground["cap"])[0]
         self.cap_facets = cand
-        vf, vst, tris, tf = body.subdivision(sub)
-        Tp = vst[tris[: len(tris) // len(body.bfacets)]]
-        bary = np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
-        qst = np.einsum("qk,tkd->tqd", bary, Tp).reshape(-1, 2)
-        e1, e2 = Tp[:, 1] - Tp[:, 0], Tp[:, 2] - Tp[:, 0]
-        qw = np.repeat(0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) / 3, 3)
-        fid = np.repeat(cand, len(qst))
-        st = np.tile(qst, (len(cand), 1))
-        E = body.eval_matrix(fid, st)
-        E1 = body.eval_matrix(fid, st, derivative=1)
-        E2 = body.eval_matrix(fid, st, derivative=2)
-        X = E @ body.doflocs
-        J = np.linalg.norm(np.cross(E1 @ body.doflocs, E2 @ body.doflocs), axis=1)
-        self.w = np.tile(qw, len(cand)) * J
+        E, self.w, X = g.cap_quadrature(body, cand, sub)
         self.y0 = X @ self.n - self.height
         sdofs = np.unique(E.indices)
         self.sdofs = sdofs
@@ -408,14 +395,7 @@ def run(body, sc, substeps, log=print):
 # ---------------------------------------------------------------------------
 # Depth cameras (hidden.py's convention, any camera; pixels found per triangle bounding box)
 # ---------------------------------------------------------------------------
-def camera_frame(cam):
-    e, t, a = (np.array(cam[k], float) for k in ("eye", "target", "up"))
-    fwd = (t - e) / np.linalg.norm(t - e)
-    right = np.cross(fwd, a)
-    right /= np.linalg.norm(right)
-    up = np.cross(right, fwd)
-    f = (cam["height"] / 2) / np.tan(cam["fov_y"] / 2)
-    return e, fwd, right, up, f
+camera_frame = hd.camera_frame
 
 
 def rays(cam, i, j):

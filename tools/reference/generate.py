@@ -505,6 +505,27 @@ def distances_to_surface(points, T):
 # ---------------------------------------------------------------------------
 # Contact with the ground plane y = height (frictionless penalty)
 # ---------------------------------------------------------------------------
+def cap_quadrature(body, cand, sub):
+    """A composite rule on the boundary facets `cand`: each facet split into sub x sub
+    triangles, the 3-point degree-2 rule on each.  Returns the evaluation matrix of the
+    quadrature points (points x scalar dofs), their reference area weights and positions."""
+    vf, vst, tris, tf = body.subdivision(sub)
+    Tp = vst[tris[: len(tris) // len(body.bfacets)]]     # sub-triangles of one facet
+    bary = np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
+    qst = np.einsum("qk,tkd->tqd", bary, Tp).reshape(-1, 2)       # points in one facet
+    e1, e2 = Tp[:, 1] - Tp[:, 0], Tp[:, 2] - Tp[:, 0]
+    sub_area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    qw = np.repeat(sub_area / 3, 3)
+    fid = np.repeat(cand, len(qst))
+    st = np.tile(qst, (len(cand), 1))
+    E = body.eval_matrix(fid, st)
+    E1 = body.eval_matrix(fid, st, derivative=1)
+    E2 = body.eval_matrix(fid, st, derivative=2)
+    X = E @ body.doflocs
+    J = np.linalg.norm(np.cross(E1 @ body.doflocs, E2 @ body.doflocs), axis=1)
+    return E, np.tile(qw, len(cand)) * J, X
+
+
 class Contact:
     """Penalty energy  (k/2) * integral over the reference surface of min(0, gap)^2 dA,
     gap = height of the material point above the plane.  Integrated on the boundary
@@ -520,22 +541,7 @@ class Contact:
         fy = mesh.p[1][mesh.facets[:, body.bfacets]]
         cand = np.nonzero(fy.max(axis=0) < ymin + ground["cap"])[0]
         self.cap_facets = cand
-        # composite quadrature in facet parameters
-        vf, vst, tris, tf = body.subdivision(sub)
-        Tp = vst[tris[: len(tris) // len(body.bfacets)]]     # sub-triangles of one facet
-        bary = np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
-        qst = np.einsum("qk,tkd->tqd", bary, Tp).reshape(-1, 2)       # points in one facet
-        e1, e2 = Tp[:, 1] - Tp[:, 0], Tp[:, 2] - Tp[:, 0]
-        sub_area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-        qw = np.repeat(sub_area / 3, 3)
-        fid = np.repeat(cand, len(qst))
-        st = np.tile(qst, (len(cand), 1))
-        E = body.eval_matrix(fid, st)
-        E1 = body.eval_matrix(fid, st, derivative=1)
-        E2 = body.eval_matrix(fid, st, derivative=2)
-        X = E @ body.doflocs
-        J = np.linalg.norm(np.cross(E1 @ body.doflocs, E2 @ body.doflocs), axis=1)
-        self.w = np.tile(qw, len(cand)) * J                  # reference area weights
+        E, self.w, X = cap_quadrature(body, cand, sub)       # reference area weights
         self.y0 = X[:, 1] - self.height                      # reference gap
         # candidate scalar dofs and the y-components among the free dofs
         sdofs = np.unique(E.indices)

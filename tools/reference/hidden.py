@@ -354,13 +354,14 @@ def sample_points(body, surf, U, rng, partial, hide=None):
     return body.eval_matrix(surf.tf[k], st) @ (body.doflocs + U)
 
 
-def camera_frame():
-    e, t, a = (np.array(CAMERA[k], float) for k in ("eye", "target", "up"))
+def camera_frame(cam=CAMERA):
+    """Eye, viewing axis, right and up unit vectors, and the focal length in pixels of `cam`."""
+    e, t, a = (np.array(cam[k], float) for k in ("eye", "target", "up"))
     fwd = (t - e) / np.linalg.norm(t - e)
     right = np.cross(fwd, a)
     right /= np.linalg.norm(right)
     up = np.cross(right, fwd)
-    f = (CAMERA["height"] / 2) / np.tan(CAMERA["fov_y"] / 2)
+    f = (cam["height"] / 2) / np.tan(cam["fov_y"] / 2)
     return e, fwd, right, up, f
 
 

@@ -139,9 +139,10 @@ impl Ground {
     /// The spring constant of crossing `c`: `k`, or `k a_c` per unit area
     /// ([`ContactScheme::Penalty`], [`ContactScheme::Softmin`]).
     pub fn spring(&self, c: &Crossing) -> f64 {
-        match self.scheme {
-            ContactScheme::Penalty | ContactScheme::Softmin => self.stiffness * c.area,
-            ContactScheme::Implicit | ContactScheme::Thesis => self.stiffness,
+        if self.stiffness_per_area() {
+            self.stiffness * c.area
+        } else {
+            self.stiffness
         }
     }
 }
