@@ -65,7 +65,11 @@ VARIANTS = {
     "penalty": [("ground", "scheme", '"penalty"')],
     "softmin": [("ground", "scheme", '"softmin"')],
     "implicit": [("ground", "scheme", '"implicit"')],
-    # the default law with its default values (a scene giving neither): the thesis' springs
+    # the default law with its default values (a scene stating neither law nor values): the
+    # per-area penalty, 4e6 per unit area, softness 1e5 (issue 49)
+    "default_contact": [("ground", "scheme", None), ("ground", "stiffness", None),
+                        ("ground", "softness", None)],
+    # the thesis' springs with their default values (the default law before issue 49)
     "springs_per_crossing": [("ground", "scheme", '"implicit"'), ("ground", "stiffness", "1.0e4"),
                             ("ground", "softness", "100.0")],
 }

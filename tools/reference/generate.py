@@ -908,7 +908,8 @@ def scene_toml(name, case):
         g = case["ground"]
         lines += ["# the reference uses a frictionless penalty p = k * penetration with",
                   f"# k = {g['penalty']:g} (converged in k, see truth.json); these are our model's springs",
-                  "[ground]", f"normal = {fmt(g['normal'])}", f"height = {g['height']!r}",
+                  "# per grid crossing (the thesis' law; ground/scene-penalty.toml has the reference's)",
+                  "[ground]", 'scheme = "implicit"', f"normal = {fmt(g['normal'])}", f"height = {g['height']!r}",
                   f"stiffness = {g['scene_stiffness']!r}", f"softness = {g['scene_softness']!r}", ""]
         effects.append("ground")
     if case.get("angular_velocity") is not None:

@@ -110,29 +110,52 @@ pub struct GroundSection {
     /// the ground is `normal . x >= height`
     #[serde(default)]
     pub height: f64,
-    /// spring stiffness
-    #[serde(default = "ground_k")]
-    pub stiffness: f64,
-    /// softmin alpha
-    #[serde(default = "ground_alpha")]
-    pub softness: f64,
-    /// the contact law and its time discretization: "implicit" (default), "thesis" (softmin
-    /// springs per crossing), "softmin" or "penalty" (`stiffness` per unit area)
+    /// contact stiffness: a pressure per unit penetration with the per-area laws ("penalty",
+    /// "softmin"), a spring per grid crossing with "implicit" and "thesis"; absent: the
+    /// scheme's default ([`GroundSection::stiffness`])
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<f64>,
+    /// the law's sharpness `alpha` (the penalty's smoothing length is `1 / alpha`); absent:
+    /// the scheme's default ([`GroundSection::softness`])
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub softness: Option<f64>,
+    /// the contact law and its time discretization: "penalty" (default; per unit area, no push
+    /// before contact), "softmin" (per unit area), "implicit" or "thesis" (the thesis' softmin
+    /// springs per grid crossing)
     #[serde(default)]
     pub scheme: crate::fem::collision::ContactScheme,
 }
 fn up() -> [f64; 3] {
     [0.0, 1.0, 0.0]
 }
-/// Default `[ground] stiffness` (the spring constant `k` per crossing).
-pub const DEFAULT_GROUND_STIFFNESS: f64 = 1.0e4;
-/// Default `[ground] softness` (the softmin sharpness `alpha`).
-pub const DEFAULT_GROUND_SOFTNESS: f64 = 100.0;
-fn ground_k() -> f64 {
-    DEFAULT_GROUND_STIFFNESS
-}
-fn ground_alpha() -> f64 {
-    DEFAULT_GROUND_SOFTNESS
+/// Default `[ground] stiffness` of the per-area laws ("penalty", "softmin"): a pressure per
+/// unit penetration (a body of density 1000 resting 1 m deep under g = 10 sinks 2.5 mm).
+pub const DEFAULT_GROUND_STIFFNESS: f64 = 4.0e6;
+/// Default `[ground] softness` of the per-area laws: the penalty's smoothing length 1e-5.
+pub const DEFAULT_GROUND_SOFTNESS: f64 = 1.0e5;
+/// Default `[ground] stiffness` of the per-crossing laws ("implicit", "thesis"): the spring per
+/// grid crossing of the thesis' scenes.
+pub const DEFAULT_CROSSING_STIFFNESS: f64 = 1.0e4;
+/// Default `[ground] softness` of the per-crossing laws (the softmin's `alpha`).
+pub const DEFAULT_CROSSING_SOFTNESS: f64 = 100.0;
+
+impl GroundSection {
+    /// The stated stiffness, else the scheme's default (per unit area or per crossing).
+    pub fn stiffness(&self) -> f64 {
+        self.stiffness.unwrap_or(if self.scheme.per_area() {
+            DEFAULT_GROUND_STIFFNESS
+        } else {
+            DEFAULT_CROSSING_STIFFNESS
+        })
+    }
+    /// The stated softness, else the scheme's default.
+    pub fn softness(&self) -> f64 {
+        self.softness.unwrap_or(if self.scheme.per_area() {
+            DEFAULT_GROUND_SOFTNESS
+        } else {
+            DEFAULT_CROSSING_SOFTNESS
+        })
+    }
 }
 
 /// `[[dirichlet]]`
@@ -427,8 +450,8 @@ impl Scene {
             m.ground = Some(Ground {
                 normal: if len > 0.0 { n * (1.0 / len) } else { n },
                 height: if len > 0.0 { g.height / len } else { g.height },
-                stiffness: g.stiffness,
-                softness: g.softness,
+                stiffness: g.stiffness(),
+                softness: g.softness(),
                 scheme: g.scheme,
             });
         }

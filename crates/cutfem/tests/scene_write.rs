@@ -101,8 +101,8 @@ fn changed_values_and_sections_are_written() {
     scene.ground = Some(cutfem::scene::GroundSection {
         normal: [0.0, 1.0, 0.0],
         height: -0.25,
-        stiffness: 3.0e4,
-        softness: 50.0,
+        stiffness: Some(3.0e4),
+        softness: Some(50.0),
         scheme: cutfem::fem::collision::ContactScheme::Penalty,
     });
     scene.numerics.cg_tolerance = 1e-9;

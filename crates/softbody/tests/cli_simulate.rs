@@ -239,7 +239,8 @@ fn simulate_refine_check_reports_the_discretisation_error() {
     assert!(stderr.contains("discretisation:"), "{stderr}");
 }
 
-/// A light box on the default softmin ground (per-crossing springs, softness 100) rests where
+/// A light box on the thesis' softmin ground (`scheme = "implicit"`: per-crossing springs,
+/// softness 100) rests where
 /// its bottom crossings' push before contact sums to its weight, about 0.1 above the plane:
 /// `simulate` reports where the ground pushed (`ground_push`) and warns that the law holds the
 /// body off the plane; on the penalty law (per unit area, no push before contact) the same box
@@ -267,7 +268,10 @@ fn simulate_warns_when_the_ground_holds_the_body_off_the_plane() {
         let text = String::from_utf8_lossy(&o.stderr).to_string() + &String::from_utf8_lossy(&o.stdout);
         (push, text)
     };
-    let (push, text) = run("softmin.toml", &scene(0.2, "stiffness = 1.0e4\nsoftness = 100.0"));
+    let (push, text) = run(
+        "softmin.toml",
+        &scene(0.2, "scheme = \"implicit\"\nstiffness = 1.0e4\nsoftness = 100.0"),
+    );
     assert_eq!(push["hovers"], true, "{push}");
     assert_eq!(push["share_above_plane"], 1.0);
     assert!(push["mean_distance"].as_f64().unwrap() > 0.05, "{push}");
@@ -277,6 +281,13 @@ fn simulate_warns_when_the_ground_holds_the_body_off_the_plane() {
     let (push, text) = run("penalty.toml", &penalty);
     assert_eq!(push["hovers"], false, "{push}");
     assert_eq!(push["share_above_plane"], 0.0);
+    let d = push["mean_distance"].as_f64().unwrap();
+    assert!(d < 0.0 && d > -1e-3, "{push}");
+    assert!(!text.contains("off the plane"), "{text}");
+
+    // a `[ground]` that names no law gets the per-area penalty: no push before contact
+    let (push, text) = run("default.toml", &scene(0.1, ""));
+    assert_eq!(push["hovers"], false, "{push}");
     let d = push["mean_distance"].as_f64().unwrap();
     assert!(d < 0.0 && d > -1e-3, "{push}");
     assert!(!text.contains("off the plane"), "{text}");

@@ -214,8 +214,8 @@ pub struct Refined {
 
 /// Adds the candidate effect `name` of a diagnosis to the model and refits, as a user does
 /// after the verdict: the scene's own starting values for the base parameters (the wrong
-/// model's fit may have wandered off), the effect's values from the short refit, then
-/// `iterations` iterations.
+/// model's fit may have wandered off) with the effect's values from the short refit, or the
+/// short refit's whole optimum where it fits the data better, then `iterations` iterations.
 pub fn add_and_refit(setup: &Setup, d: &Diagnosis, name: &str, iterations: usize) -> Result<Refined, Error> {
     let c = d
         .candidates
@@ -230,12 +230,27 @@ pub fn add_and_refit(setup: &Setup, d: &Diagnosis, name: &str, iterations: usize
     let (mut problem, x0) =
         score::extended_problem_at(setup, &d.base_params, &d.base_x, &scene, &e.params())?;
     let nb = d.base_x_start.len();
-    let start = if c.x.len() == x0.len() && nb <= x0.len() {
+    let same_layout = c.x.len() == x0.len();
+    let user = if same_layout && nb <= x0.len() {
         let mut s = d.base_x_start.clone();
         s.extend_from_slice(&c.x[nb..]);
         s
     } else {
         x0
+    };
+    // the short refit's own optimum is the other start a user has (the verdict's suggested
+    // values): the fit goes on from the better of the two, so that a contact or a throw whose
+    // misfit is not convex in the base parameters is not refitted into a worse basin than the
+    // diagnosis already found
+    let start = if same_layout && c.x != user {
+        let mut rms_at = |x: &[f64]| problem.evaluate(x).map_or(f64::INFINITY, |e| e.rms());
+        if rms_at(&c.x) < rms_at(&user) {
+            c.x.clone()
+        } else {
+            user
+        }
+    } else {
+        user
     };
     let (x, eval) = score::fit_problem(&mut problem, &start, iterations)?;
     let model = problem.model_at(&x);

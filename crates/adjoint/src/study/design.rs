@@ -30,9 +30,7 @@ use crate::observe::{observe_run, RigParams};
 use crate::params::{Param, ParamSet};
 use crate::statistics::{uncertainty_of, Uncertainty};
 use crate::Error;
-use cutfem::scene::{
-    GroundSection, InitialSection, Scene, DEFAULT_GROUND_SOFTNESS, DEFAULT_GROUND_STIFFNESS,
-};
+use cutfem::scene::{GroundSection, InitialSection, Scene};
 
 /// One candidate motion.
 #[derive(Clone, Debug)]
@@ -113,8 +111,8 @@ pub fn candidates(base: &Scene, lo: [f64; 3], hi: [f64; 3]) -> Vec<Candidate> {
         scene.ground = Some(GroundSection {
             normal: up,
             height: -(lowest + gap),
-            stiffness: DEFAULT_GROUND_STIFFNESS,
-            softness: DEFAULT_GROUND_SOFTNESS,
+            stiffness: None,
+            softness: None,
             scheme: Default::default(),
         });
         add_effect(scene, "ground");

@@ -20,7 +20,7 @@
 //! Two time discretizations of the contact force ([`ContactScheme`]):
 //! * `Thesis`: the prediction above, explicit in the unknown displacement. Stable only while
 //!   `k * crossings * dt^2 / mass` stays below about 1.
-//! * `Implicit` (default): the force is linearized about the current state,
+//! * `Implicit`: the force is linearized about the current state,
 //!   `f(u') ~ f(u) + J (u' - u)` with `J = -k softmin'(d) w w^T n n^T` (`w` the corner weights
 //!   `1-t`, `t`), and its theta-weighted part `theta J u'` moves into the Newmark matrix:
 //!   `A += theta dt K_c`, `b += dt (f(u) - theta J u)`, `K_c = -J` (positive semi-definite).
@@ -29,7 +29,7 @@
 //!   spring per unit area, `k a_c` (the area `a_c` below): `stiffness` is a pressure per unit
 //!   penetration whatever the grid, as with `Penalty`, and the law still pushes before contact
 //!   (`k ln 2 / alpha` per unit area at `d = 0`).
-//! * `Penalty`: a penalty per unit area, iterated to convergence within the step, with the C2
+//! * `Penalty` (default, `[ground] scheme` absent): a penalty per unit area, iterated to convergence within the step, with the C2
 //!   law [`penalty0`] in place of the softmin (no push before contact; `delta = 1 / alpha`). The spring of
 //!   a crossing stands for the part of the body's (rest) surface around it: a surface with unit
 //!   normal `m` crosses `|m|_1 / h^2` grid edges per unit area, so each crossing carries the
@@ -60,14 +60,22 @@ type Field = Matrix<Vec3<f64>>;
 #[serde(rename_all = "lowercase")]
 pub enum ContactScheme {
     /// linearized, implicit in the new displacement
-    #[default]
     Implicit,
     /// the thesis' explicit prediction `f + theta dt df/dt`
     Thesis,
-    /// a penalty per unit area, Newton-iterated within each step
+    /// a penalty per unit area, Newton-iterated within each step (the default)
+    #[default]
     Penalty,
     /// the softmin law of `Implicit` with springs per unit area (`k a_c`, as `Penalty`'s)
     Softmin,
+}
+
+impl ContactScheme {
+    /// Whether the law's stiffness is per unit area (each crossing's spring `k a_c`) rather
+    /// than per crossing.
+    pub fn per_area(self) -> bool {
+        matches!(self, ContactScheme::Penalty | ContactScheme::Softmin)
+    }
 }
 
 /// Newton iterations of the [`ContactScheme::Penalty`] step stop when no crossing's distance
@@ -133,7 +141,7 @@ impl Ground {
     /// Whether `stiffness` is per unit area (each crossing's spring `k a_c`) rather than per
     /// crossing.
     pub fn stiffness_per_area(&self) -> bool {
-        matches!(self.scheme, ContactScheme::Penalty | ContactScheme::Softmin)
+        self.scheme.per_area()
     }
 
     /// The spring constant of crossing `c`: `k`, or `k a_c` per unit area

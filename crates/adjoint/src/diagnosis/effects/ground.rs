@@ -10,7 +10,7 @@ use super::{add_effect, short, toml_vec, DataContext, Effect, Probe};
 use crate::params::Param;
 use crate::Error;
 use cutfem::fem::Model;
-use cutfem::scene::{GroundSection, Scene, DEFAULT_GROUND_SOFTNESS, DEFAULT_GROUND_STIFFNESS};
+use cutfem::scene::{GroundSection, Scene};
 
 /// Soft ground contact.
 #[derive(Clone, Copy, Debug, Default)]
@@ -65,8 +65,8 @@ impl Effect for GroundContact {
         scene.ground = Some(GroundSection {
             normal,
             height: heights[k].min(body_low),
-            stiffness: old.as_ref().map_or(DEFAULT_GROUND_STIFFNESS, |g| g.stiffness),
-            softness: old.as_ref().map_or(DEFAULT_GROUND_SOFTNESS, |g| g.softness),
+            stiffness: old.as_ref().and_then(|g| g.stiffness),
+            softness: old.as_ref().and_then(|g| g.softness),
             scheme: old.map(|g| g.scheme).unwrap_or_default(),
         });
         add_effect(scene, self.name());
