@@ -151,9 +151,15 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
                     v["persistence"] = p.to_json();
                     v["withdrew"] = serde_json::Value::from(withdrew);
                 }
-                Ok(None) => {}
+                // the guard fails closed: a named effect it could not weigh is unverified
+                Ok(None) => {
+                    let reason = "the named effect has no refitted model to carry to the finer grid";
+                    adjoint::diagnosis::mark_unverified(&mut d, fine, reason);
+                    v["persistence"] = json!({ "error": reason });
+                }
                 Err(e) => {
-                    crate::note!("persistence check skipped: {e}");
+                    crate::note!("persistence check failed: {e}");
+                    adjoint::diagnosis::mark_unverified(&mut d, fine, &e.to_string());
                     v["persistence"] = json!({ "error": e.to_string() });
                 }
             }
@@ -198,6 +204,23 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     Ok((d, summary))
 }
 
+/// A candidate's row of the printed table; one whose probe or refit failed shows its error in
+/// place of the numbers it has not got.
+pub fn candidate_row(c: &adjoint::diagnosis::score::Candidate) -> String {
+    if let Some(e) = &c.error {
+        return format!("{:<18} could not be checked: {e}", c.effect);
+    }
+    let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4e}"));
+    format!(
+        "{:<18} {:>12.4e} {:>12.4e} {:>12} {:>12}",
+        c.effect,
+        c.score,
+        c.predicted_rms,
+        opt(c.rms_after),
+        c.delta_bic.map_or("-".to_string(), |v| format!("{v:.1}"))
+    )
+}
+
 /// The JSON of a diagnosis (interface.md fields first).
 pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: Option<&Path>, seconds: f64) -> Value {
     let candidates: Vec<Value> = d
@@ -231,6 +254,8 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: Option<&Path>,
         "missing_effect": d.missing_effect,
         "alternatives": d.alternatives,
         "verdict": d.verdict,
+        "unverified": d.unverified,
+        "unchecked": d.candidates.iter().filter_map(|c| c.error.as_ref().map(|e| json!({"effect": c.effect, "error": e}))).collect::<Vec<_>>(),
         "effects": d.effects,
         "fitted": crate::fit::values_json(&d.fitted),
         "rms_start": d.rms_start,
@@ -416,15 +441,7 @@ pub fn print_text(d: &Diagnosis) {
         "dBIC"
     );
     for c in &d.candidates {
-        let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4e}"));
-        crate::note!(
-            "{:<18} {:>12.4e} {:>12.4e} {:>12} {:>12}",
-            c.effect,
-            c.score,
-            c.predicted_rms,
-            opt(c.rms_after),
-            c.delta_bic.map_or("-".to_string(), |v| format!("{v:.1}"))
-        );
+        crate::note!("{}", candidate_row(c));
     }
     crate::note!("{}", d.verdict);
 }

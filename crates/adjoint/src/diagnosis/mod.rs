@@ -187,6 +187,9 @@ pub struct Diagnosis {
     pub alternatives: Vec<String>,
     /// the verdict in plain words
     pub verdict: String,
+    /// why the verdict is not confirmed at the finer grid, when the discretisation guard could
+    /// not run for the named effect ([`mark_unverified`]: the guard fails closed)
+    pub unverified: Option<String>,
     /// the fitted model as given
     pub model: Model,
     /// the scene with the fitted values
@@ -416,6 +419,7 @@ pub fn diagnose(
         missing_effect,
         alternatives,
         verdict,
+        unverified: None,
         model,
         fitted_scene,
         base_params: base.params,
@@ -469,8 +473,59 @@ fn on_bounds(values: &[(String, f64)], bounds: &[(f64, f64)], x: &[f64]) -> Vec<
     out
 }
 
-/// The verdict in plain words.
+/// The effects whose probe or refit failed, with their errors: "effect (error); ...".
+pub fn unchecked(candidates: &[Candidate]) -> Option<String> {
+    let failed: Vec<String> = candidates
+        .iter()
+        .filter_map(|c| c.error.as_ref().map(|e| format!("{} ({e})", c.effect)))
+        .collect();
+    (!failed.is_empty()).then(|| failed.join("; "))
+}
+
+/// Marks the verdict of `d` as not confirmed at resolution `resolution`: the check that the
+/// named effect's improvement persists there could not run (`reason`). The guard fails closed:
+/// the verdict says in words that the effect is unverified (JSON `unverified`), instead of
+/// standing as if it had passed.
+pub fn mark_unverified(d: &mut Diagnosis, resolution: f64, reason: &str) {
+    let Some(name) = d.missing_effect.as_deref() else {
+        return;
+    };
+    let why =
+        format!("the check that its improvement persists at resolution {resolution} could not run: {reason}");
+    d.verdict = format!(
+        "unverified at 2r: {name} is named at this grid, but {why}; it may fit the model's own \
+         discretisation error (diagnose again with a finer [body] resolution)\n{}",
+        d.verdict
+    );
+    d.unverified = Some(why);
+}
+
+/// The verdict in plain words. A candidate that could not be probed or refitted is named in
+/// it: "nothing missing" is not said while one failed ("undecided").
 fn verdict(
+    missing: Option<&Candidate>,
+    rms: f64,
+    floor: f64,
+    precision: f64,
+    fails: bool,
+    candidates: &[Candidate],
+) -> String {
+    let unchecked = unchecked(candidates);
+    let text = judged(missing, rms, floor, precision, fails, candidates);
+    match (unchecked, missing) {
+        // a model at numerical precision leaves nothing for an effect to explain
+        (_, None) if rms <= precision => text,
+        (None, _) => text,
+        (Some(u), Some(_)) => format!("{text}\n(could not be checked: {u})"),
+        (Some(u), None) => format!(
+            "undecided: {u} could not be checked, so nothing is called missing, but the \
+             search is incomplete; of the effects checked: {text}"
+        ),
+    }
+}
+
+/// [`verdict`] over the candidates that were checked.
+fn judged(
     missing: Option<&Candidate>,
     rms: f64,
     floor: f64,
@@ -504,7 +559,7 @@ fn verdict(
             rms / floor.max(f64::MIN_POSITIVE),
             effects::short(floor)
         ),
-        None => match candidates.first() {
+        None => match candidates.iter().find(|c| c.error.is_none()) {
             Some(c) => format!(
                 "nothing missing from the catalogue: rms {} exceeds the noise floor {}, but the best \
                  candidate ({}) only reaches {}; the misfit may come from an effect outside the \
@@ -525,6 +580,70 @@ fn verdict(
 
 #[cfg(test)]
 mod tests {
+    use super::effects::Probe;
+    use super::score::Candidate;
+
+    fn candidate(effect: &str, rms_after: Option<f64>, error: Option<&str>) -> Candidate {
+        Candidate {
+            effect: effect.into(),
+            probe: Probe::Score,
+            params: Vec::new(),
+            score: if error.is_some() { f64::NEG_INFINITY } else { 10.0 },
+            predicted_rms: 0.01,
+            rms_after,
+            delta_bic: rms_after.map(|_| -50.0),
+            values: Vec::new(),
+            suggestion: String::new(),
+            error: error.map(str::to_string),
+            model: None,
+            step: Vec::new(),
+            x: Vec::new(),
+            scene: None,
+        }
+    }
+
+    /// Every verdict without a named effect says "undecided" and names each candidate whose
+    /// probe or refit failed, with its error, instead of "nothing missing"; with a named effect
+    /// the failures are listed beside it; a model at numerical precision needs no search.
+    #[test]
+    fn a_failed_candidate_is_never_hidden_behind_nothing_missing() {
+        let ok = candidate("drag", Some(0.0099), None);
+        let failed = candidate("ground", None, Some("the simulation diverged"));
+        let (floor, precision) = (0.01, 1e-12);
+        for (rms, fails) in [(0.0105, false), (0.05, true)] {
+            let clean = super::verdict(None, rms, floor, precision, fails, std::slice::from_ref(&ok));
+            assert!(clean.starts_with("nothing missing"), "{clean}");
+            let v = super::verdict(None, rms, floor, precision, fails, &[ok.clone(), failed.clone()]);
+            assert!(
+                v.starts_with("undecided: ground (the simulation diverged)"),
+                "{v}"
+            );
+            assert!(!v.starts_with("nothing missing"), "{v}");
+            // the checked candidate is the one the text reports on
+            if fails {
+                assert!(v.contains("the best candidate (drag)"), "{v}");
+            }
+        }
+        let named = candidate("damping", Some(0.0101), None);
+        let v = super::verdict(
+            Some(&named),
+            0.05,
+            floor,
+            precision,
+            true,
+            &[named.clone(), failed.clone()],
+        );
+        assert!(v.starts_with("missing: damping"), "{v}");
+        assert!(
+            v.contains("could not be checked: ground (the simulation diverged)"),
+            "{v}"
+        );
+        let v = super::verdict(None, 1e-14, floor, precision, false, &[failed]);
+        assert!(
+            v.starts_with("nothing missing: rms") && v.contains("numerical precision"),
+            "{v}"
+        );
+    }
     /// Only the coordinates on (or numerically at) a bound are named, with their side.
     #[test]
     fn on_bounds_names_the_coordinates_on_a_bound() {

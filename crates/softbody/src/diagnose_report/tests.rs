@@ -136,6 +136,7 @@ fn diagnosis() -> Diagnosis {
         direction,
         worst_frame: 5,
         records,
+        unverified: None,
         candidates: vec![
             candidate("gravity", 0.004, Some(0.003)),
             candidate("damping", 0.008, None),
@@ -434,4 +435,43 @@ fn write_examples() {
     let dir = std::env::temp_dir().join("softbody-diagnose-report-examples");
     let paths = write_pictures(&dir, &d, &inputs).expect("pictures");
     println!("{paths:#?}");
+}
+
+/// Failures in plain sight: a candidate whose probe or refit failed is in the printed table
+/// with its error and in the JSON's `unchecked`; a discretisation guard that could not run
+/// makes the verdict "unverified at 2r" in words and in the JSON's `unverified`.
+#[test]
+fn failed_candidates_and_guards_are_in_plain_sight() {
+    let mut d = diagnosis();
+    assert!(crate::diagnose::candidate_row(&d.candidates[1]).starts_with("damping"));
+    d.candidates[1].error = Some("the simulation diverged at step 3".into());
+    let row = crate::diagnose::candidate_row(&d.candidates[1]);
+    assert!(
+        row.starts_with("damping") && row.contains("could not be checked: the simulation diverged at step 3"),
+        "{row}"
+    );
+    let v = crate::diagnose::summary_json(&d, &[], None, 1.0);
+    assert_eq!(v["unchecked"][0]["effect"], "damping", "{v}");
+    assert!(v["unverified"].is_null());
+
+    adjoint::diagnosis::mark_unverified(&mut d, 16.0, "not enough memory for the finer grid");
+    assert!(
+        d.verdict.starts_with("unverified at 2r: gravity"),
+        "{}",
+        d.verdict
+    );
+    assert!(d.verdict.contains("resolution 16") && d.verdict.ends_with("missing: gravity"));
+    let v = crate::diagnose::summary_json(&d, &[], None, 1.0);
+    assert!(
+        v["unverified"].as_str().unwrap().contains("not enough memory"),
+        "{v}"
+    );
+    // nothing named: nothing to verify
+    let mut none = diagnosis();
+    none.missing_effect = None;
+    adjoint::diagnosis::mark_unverified(&mut none, 16.0, "x");
+    assert_eq!(
+        (none.verdict.as_str(), none.unverified),
+        ("missing: gravity", None)
+    );
 }
