@@ -212,10 +212,10 @@ pub fn candidate_row(c: &adjoint::diagnosis::score::Candidate) -> String {
     }
     let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4e}"));
     format!(
-        "{:<18} {:>12.4e} {:>12.4e} {:>12} {:>12}",
+        "{:<18} {:>12.4e} {:>12} {:>12} {:>12}",
         c.effect,
         c.score,
-        c.predicted_rms,
+        opt(Some(c.predicted_rms).filter(|p| p.is_finite())),
         opt(c.rms_after),
         c.delta_bic.map_or("-".to_string(), |v| format!("{v:.1}"))
     )
@@ -231,7 +231,7 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: Option<&Path>,
                 "effect": c.effect,
                 "score": finite(c.score),
                 "rms_after": c.rms_after,
-                "predicted_rms": c.predicted_rms,
+                "predicted_rms": finite(c.predicted_rms),
                 "delta_bic": c.delta_bic,
                 "probe": c.probe,
                 "parameters": c.params,

@@ -352,6 +352,7 @@ pub fn diagnose(
         off: &off,
         settings,
         points: records.len(),
+        floor: noise_floor,
     };
     let candidates = search.candidates(&data, progress, total);
     if noise_floor_method != "plane fits" {

@@ -48,7 +48,8 @@ pub struct Candidate {
     pub params: Vec<String>,
     /// the score statistic `LM` (module docs)
     pub score: f64,
-    /// the rms the Gauss-Newton model predicts after adding it
+    /// the rms the Gauss-Newton model predicts after adding it (NaN: the model predicted a
+    /// negative cost, no prediction)
     pub predicted_rms: f64,
     /// the rms after the short refit (`None`: not refitted)
     pub rms_after: Option<f64>,
@@ -238,11 +239,20 @@ pub fn probe(setup: &Setup, base: &BaseFit, effect: &dyn Effect, data: &DataCont
                 c.step = step;
                 ev.cost - 0.5 * q.max(0.0)
             }
-        }
-        .max(0.0);
+        };
+        // a Gauss-Newton model of a sum of squares cannot fall below zero (its minimum is half
+        // the squared residual left after projecting out the Jacobian's range): one that does
+        // divides a gradient by a curvature at rounding level (a log coordinate probed near 0)
+        // and predicts nothing; its rms is not a number (shown "-", JSON null), not 0
+        let valid = predicted > 0.0 || (predicted == 0.0 && c0 == 0.0);
+        let predicted = predicted.max(0.0);
         let delta = c0 - predicted;
         c.score = if c0 > 0.0 { n * delta / c0 } else { 0.0 };
-        c.predicted_rms = (2.0 * predicted / n.max(1.0)).sqrt();
+        c.predicted_rms = if valid {
+            (2.0 * predicted / n.max(1.0)).sqrt()
+        } else {
+            f64::NAN
+        };
         c.scene = Some(scene);
         Ok(())
     };

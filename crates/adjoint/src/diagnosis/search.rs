@@ -1,7 +1,9 @@
 //! The search for the missing effect ([`super::diagnose`], stage 3): every effect that is off
 //! is probed (a score statistic, [`score::probe`]), the best are refitted briefly
-//! ([`score::refit`]) unless their prediction cannot win, and the noise floor is read again at
-//! the best refit ([`refit_floor`]).
+//! ([`score::refit`]), and the noise floor is read again at the best refit ([`refit_floor`]).
+//! A candidate is skipped by its prediction only once a refit has brought the model within the
+//! fail ratio of the noise floor and the prediction says it cannot win; while the model still
+//! fails, every candidate whose score beats the BIC penalty is refitted (issue 50).
 
 use super::effects::{DataContext, Effect, Probe};
 use super::score::{BaseFit, Candidate};
@@ -23,6 +25,8 @@ pub(super) struct Search<'a> {
     pub(super) settings: &'a DiagnoseParams,
     /// the residual count (the BIC penalty per parameter is its log)
     pub(super) points: usize,
+    /// the noise floor stated before the search (the fail ratio's reference)
+    pub(super) floor: f64,
 }
 
 impl Search<'_> {
@@ -75,7 +79,13 @@ impl Search<'_> {
                 .find(|e| e.name() == candidates[i].effect)
                 .expect("listed");
             let reliable = effect.probe() == Probe::Score && effect.params().iter().all(|p| !p.is_log());
-            if let Some(b) = best {
+            // pruning is allowed only once a refit has brought the model within the fail
+            // ratio of the noise floor: while the best refit still leaves it failing, every
+            // candidate whose score beats the BIC penalty is refitted (a prediction is no bound:
+            // a box dropped onto a ground the model lacked, whose ground was predicted just
+            // over twice drag's refit, was called `missing: drag`)
+            let passes = |b: &&Candidate| b.rms_after.is_some_and(|r| r <= settings.fail_ratio * self.floor);
+            if let Some(b) = best.filter(passes) {
                 let confirmed = b.rms_after.unwrap_or(f64::INFINITY);
                 let (far, reference) = if reliable {
                     (CLOSE_FACTOR, confirmed)

@@ -240,9 +240,18 @@ pub(super) fn candidates(d: &Diagnosis) -> Picture {
     // full names: the chart writes them smaller, or turned, when they don't fit under their bars
     let mut bars = Vec::new();
     for c in shown {
-        bars.push((c.effect.clone(), c.predicted_rms, pred));
+        // a candidate without a prediction (NaN) shows its refit alone, under its name
+        let predicted = c.predicted_rms.is_finite();
+        if predicted {
+            bars.push((c.effect.clone(), c.predicted_rms, pred));
+        }
         if let Some(r) = c.rms_after {
-            bars.push(("refit".to_string(), r, refit));
+            let label = if predicted {
+                "refit".to_string()
+            } else {
+                c.effect.clone()
+            };
+            bars.push((label, r, refit));
         }
     }
     let values = bars.iter().map(|b| b.1).chain([d.rms, d.noise_floor]);
