@@ -391,6 +391,9 @@ pub fn diagnose(
         None => Vec::new(),
     };
     let mut verdict = verdict(missing, rms, noise_floor, precision, fails, &candidates);
+    if missing.is_none() && rms > precision {
+        verdict = on_a_bound(&on_bounds, verdict);
+    }
     if !alternatives.is_empty() {
         verdict.push_str(&format!(
             "\n(or {}: the data do not tell {} from {}, Delta BIC within {})",
@@ -499,6 +502,25 @@ pub fn mark_unverified(d: &mut Diagnosis, resolution: f64, reason: &str) {
         d.verdict
     );
     d.unverified = Some(why);
+}
+
+/// A verdict without a named effect, when the fit as given ended with parameters on a bound of
+/// the plausible box: such a model is not clean (a slab on a soft support fitted nu 0.01 and
+/// was called "nothing missing"), and the verdict begins by saying so.
+fn on_a_bound(on_bounds: &[(String, f64, &'static str)], text: String) -> String {
+    if on_bounds.is_empty() {
+        return text;
+    }
+    let list: Vec<String> = on_bounds
+        .iter()
+        .map(|(p, v, side)| format!("{p} = {} on its {side} bound", effects::short(*v)))
+        .collect();
+    format!(
+        "not a clean model: the fit as given ended with {}; a model that fits only there lacks \
+         something (an effect outside the catalogue, a support, clamp or ground that is not \
+         the body's), so nothing is called missing, but the model is not confirmed either: {text}",
+        list.join(", ")
+    )
 }
 
 /// The verdict in plain words. A candidate that could not be probed or refitted is named in
@@ -645,6 +667,20 @@ mod tests {
             "{v}"
         );
     }
+    /// A fit that ended on a bound is never a clean "nothing missing"; without one the text
+    /// is unchanged.
+    #[test]
+    fn a_parameter_on_its_bound_is_not_a_clean_model() {
+        let text = "nothing missing: rms 0.0101 is within 1.01x the noise floor 0.01".to_string();
+        assert_eq!(super::on_a_bound(&[], text.clone()), text);
+        let v = super::on_a_bound(&[("poisson".to_string(), 0.01, "lower")], text.clone());
+        assert!(
+            v.starts_with("not a clean model: the fit as given ended with poisson = 0.01 on its lower bound"),
+            "{v}"
+        );
+        assert!(v.ends_with(&text), "{v}");
+    }
+
     /// Only the coordinates on (or numerically at) a bound are named, with their side.
     #[test]
     fn on_bounds_names_the_coordinates_on_a_bound() {
