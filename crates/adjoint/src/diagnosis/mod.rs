@@ -390,7 +390,12 @@ pub fn diagnose(
             .collect(),
         None => Vec::new(),
     };
-    let mut verdict = verdict(missing, rms, noise_floor, precision, fails, &candidates);
+    let mut verdict = with_unchecked(
+        verdict(missing, rms, noise_floor, precision, fails, &candidates),
+        missing.is_some(),
+        rms <= precision,
+        &candidates,
+    );
     if missing.is_none() && rms > precision {
         verdict = on_a_bound(&on_bounds, verdict);
     }
@@ -523,32 +528,24 @@ fn on_a_bound(on_bounds: &[(String, f64, &'static str)], text: String) -> String
     )
 }
 
-/// The verdict in plain words. A candidate that could not be probed or refitted is named in
-/// it: "nothing missing" is not said while one failed ("undecided").
-fn verdict(
-    missing: Option<&Candidate>,
-    rms: f64,
-    floor: f64,
-    precision: f64,
-    fails: bool,
-    candidates: &[Candidate],
-) -> String {
-    let unchecked = unchecked(candidates);
-    let text = judged(missing, rms, floor, precision, fails, candidates);
-    match (unchecked, missing) {
+/// The verdict `text` with the candidates that could not be probed or refitted named in it:
+/// "nothing missing" is not said while one failed ("undecided"). `missing`: an effect is named;
+/// `at_precision`: the model fits to the simulation's numerical precision.
+fn with_unchecked(text: String, missing: bool, at_precision: bool, candidates: &[Candidate]) -> String {
+    match (unchecked(candidates), missing) {
         // a model at numerical precision leaves nothing for an effect to explain
-        (_, None) if rms <= precision => text,
+        (_, false) if at_precision => text,
         (None, _) => text,
-        (Some(u), Some(_)) => format!("{text}\n(could not be checked: {u})"),
-        (Some(u), None) => format!(
+        (Some(u), true) => format!("{text}\n(could not be checked: {u})"),
+        (Some(u), false) => format!(
             "undecided: {u} could not be checked, so nothing is called missing, but the \
              search is incomplete; of the effects checked: {text}"
         ),
     }
 }
 
-/// [`verdict`] over the candidates that were checked.
-fn judged(
+/// The verdict in plain words, over the candidates that were checked.
+fn verdict(
     missing: Option<&Candidate>,
     rms: f64,
     floor: f64,
@@ -625,6 +622,18 @@ mod tests {
         }
     }
 
+    fn verdict(
+        m: Option<&Candidate>,
+        rms: f64,
+        floor: f64,
+        precision: f64,
+        fails: bool,
+        cs: &[Candidate],
+    ) -> String {
+        let text = super::verdict(m, rms, floor, precision, fails, cs);
+        super::with_unchecked(text, m.is_some(), rms <= precision, cs)
+    }
+
     /// Every verdict without a named effect says "undecided" and names each candidate whose
     /// probe or refit failed, with its error, instead of "nothing missing"; with a named effect
     /// the failures are listed beside it; a model at numerical precision needs no search.
@@ -634,9 +643,9 @@ mod tests {
         let failed = candidate("ground", None, Some("the simulation diverged"));
         let (floor, precision) = (0.01, 1e-12);
         for (rms, fails) in [(0.0105, false), (0.05, true)] {
-            let clean = super::verdict(None, rms, floor, precision, fails, std::slice::from_ref(&ok));
+            let clean = verdict(None, rms, floor, precision, fails, std::slice::from_ref(&ok));
             assert!(clean.starts_with("nothing missing"), "{clean}");
-            let v = super::verdict(None, rms, floor, precision, fails, &[ok.clone(), failed.clone()]);
+            let v = verdict(None, rms, floor, precision, fails, &[ok.clone(), failed.clone()]);
             assert!(
                 v.starts_with("undecided: ground (the simulation diverged)"),
                 "{v}"
@@ -648,7 +657,7 @@ mod tests {
             }
         }
         let named = candidate("damping", Some(0.0101), None);
-        let v = super::verdict(
+        let v = verdict(
             Some(&named),
             0.05,
             floor,
@@ -661,7 +670,7 @@ mod tests {
             v.contains("could not be checked: ground (the simulation diverged)"),
             "{v}"
         );
-        let v = super::verdict(None, 1e-14, floor, precision, false, &[failed]);
+        let v = verdict(None, 1e-14, floor, precision, false, &[failed]);
         assert!(
             v.starts_with("nothing missing: rms") && v.contains("numerical precision"),
             "{v}"
