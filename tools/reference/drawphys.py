@@ -299,6 +299,10 @@ def simulate(body, sc, substeps, log=print, cap=None):
     if sc["ground"] is not None:
         gr = dict(sc["ground"], cap=cap if cap is not None else sc["ground"]["cap"])
         contact = PlaneContact(body, gr)
+        if len(contact.cap_facets) == 0:
+            # a coarse level's lowest facets reach above the cap: widen it (as for a node
+            # outside it touching the ground)
+            raise CapError("no boundary facet within the contact cap")
         contact.prepare(fac, len(I))
     u = np.zeros(len(I))
     frames = [np.zeros((body.nS, 3))]
