@@ -611,7 +611,12 @@ def main():
         return 0
     results = []
     for s in seeds:
-        tr = run_scenario(s, args.set, out, args.quick, log)
+        try:
+            tr = run_scenario(s, args.set, out, args.quick, log)
+        except Exception as e:  # noqa: BLE001  a reference that cannot be computed is recorded, not hidden
+            log(f"    FAILED seed {s}: {type(e).__name__}: {e}")
+            results.append(dict(seed=s, name=None, failed=f"{type(e).__name__}: {e}"))
+            continue
         results.append(dict(seed=s, name=tr["name"], converged=(tr["convergence"] or {}).get("converged"),
                             seconds=tr["seconds"]))
     if args.count:

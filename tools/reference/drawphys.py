@@ -326,8 +326,13 @@ def simulate(body, sc, substeps, log=print, cap=None):
                 iterations += 1
                 if rn > 0.1 * rn_old and rn > tol:
                     KT = force.matrix(g.u_full(body, un))[I][:, I]
-                    tfac = g.Factor(c0 * M + c1 * C + KT)
-                    refactors += 1
+                    try:
+                        tfac = g.Factor(c0 * M + c1 * C + KT)
+                        refactors += 1
+                    except ArithmeticError:
+                        # the St Venant-Kirchhoff tangent is indefinite here (strong
+                        # compression): modified Newton goes on with the last factor
+                        pass
             else:
                 raise RuntimeError(f"substep {n}: Newton did not converge")
         if contact is not None:
