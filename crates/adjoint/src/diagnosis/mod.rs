@@ -34,7 +34,7 @@ mod search;
 mod verdict;
 
 pub use discretisation::{persistence, weigh_discretisation, FinerRun, Persistence};
-pub use verdict::{mark_unverified, unchecked};
+pub use verdict::{failed, mark_unverified, unchecked};
 
 use crate::cost::Robust;
 use crate::cost_mesh::SurfaceCost;

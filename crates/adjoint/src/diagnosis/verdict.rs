@@ -29,12 +29,16 @@ pub(super) fn on_bounds(
     out
 }
 
+/// The candidates whose probe or refit failed: `(effect, error)`, in their order.
+pub fn failed(candidates: &[Candidate]) -> impl Iterator<Item = (&str, &str)> {
+    candidates
+        .iter()
+        .filter_map(|c| c.error.as_deref().map(|e| (c.effect.as_str(), e)))
+}
+
 /// The effects whose probe or refit failed, with their errors: "effect (error); ...".
 pub fn unchecked(candidates: &[Candidate]) -> Option<String> {
-    let failed: Vec<String> = candidates
-        .iter()
-        .filter_map(|c| c.error.as_ref().map(|e| format!("{} ({e})", c.effect)))
-        .collect();
+    let failed: Vec<String> = failed(candidates).map(|(c, e)| format!("{c} ({e})")).collect();
     (!failed.is_empty()).then(|| failed.join("; "))
 }
 
