@@ -107,7 +107,14 @@ pub(super) fn full(
     on_bounds: &[(String, f64, &'static str)],
 ) -> String {
     let text = with_unchecked(
-        verdict(missing, rms, floor, precision, fails, candidates),
+        verdict(
+            missing,
+            rms,
+            floor,
+            precision,
+            fails,
+            candidates.iter().find(|c| c.error.is_none()),
+        ),
         missing.is_some(),
         rms <= precision,
         candidates,
@@ -119,14 +126,15 @@ pub(super) fn full(
     }
 }
 
-/// The verdict in plain words, over the candidates that were checked.
+/// The verdict in plain words, over the candidates that were checked (`best_checked`: the
+/// first of them).
 fn verdict(
     missing: Option<&Candidate>,
     rms: f64,
     floor: f64,
     precision: f64,
     fails: bool,
-    candidates: &[Candidate],
+    best_checked: Option<&Candidate>,
 ) -> String {
     match missing {
         None if rms <= precision => format!(
@@ -154,7 +162,7 @@ fn verdict(
             rms / floor.max(f64::MIN_POSITIVE),
             effects::short(floor)
         ),
-        None => match candidates.iter().find(|c| c.error.is_none()) {
+        None => match best_checked {
             Some(c) => format!(
                 "nothing missing from the catalogue: rms {} exceeds the noise floor {}, but the best \
                  candidate ({}) only reaches {}; the misfit may come from an effect outside the \
