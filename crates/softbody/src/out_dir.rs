@@ -43,9 +43,22 @@ const REPORT_FILES: [&str; 5] = [
 
 /// `PATH` + `suffix` (`out/x` + `.lock` is `out/x.lock`).
 fn beside(path: &Path, suffix: &str) -> PathBuf {
-    let mut s = path.as_os_str().to_os_string();
+    let mut s = normalise(path).into_os_string();
     s.push(suffix);
     PathBuf::from(s)
+}
+
+/// `path` said once, the way every output path is compared and staged: trailing separators
+/// and `.` components dropped (`out/` and `./out/.` are `out`), `..` kept (lexically resolving
+/// it would be wrong through a link). A report folder's temporary twin is then always staged
+/// beside it (`out.tmp-PID`), never inside it (`out/.tmp-PID`).
+pub fn normalise(path: &Path) -> PathBuf {
+    let mut out: PathBuf = path.components().collect();
+    if out.as_os_str().is_empty() && !path.as_os_str().is_empty() {
+        // `./` alone
+        out.push(".");
+    }
+    out
 }
 
 fn err(path: &Path, e: impl std::fmt::Display) -> String {
@@ -158,6 +171,7 @@ impl OutDir {
     /// a folder, is a folder of files softbody did not write, or holds one of the run's
     /// `inputs`.
     pub fn begin(target: &Path, inputs: &[PathBuf]) -> Result<OutDir, String> {
+        let target = &normalise(target);
         if target.as_os_str().is_empty() || target.file_name().is_none() {
             return Err(format!(
                 "--out {}: name a folder (not `.`, `..` or `/`)",
@@ -421,6 +435,8 @@ impl OutFiles {
     /// folder or one of the run's `inputs`, its folder exists or can be made, a file can be
     /// created there).
     pub fn begin(targets: &[PathBuf], inputs: &[PathBuf]) -> Result<OutFiles, String> {
+        let targets: Vec<PathBuf> = targets.iter().map(|t| normalise(t)).collect();
+        let targets = &targets[..];
         let first = targets.first().ok_or("no output file")?;
         for t in targets {
             refuse_inputs(t, inputs)?;

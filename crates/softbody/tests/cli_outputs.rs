@@ -325,3 +325,62 @@ fn outputs_never_replace_their_inputs() {
     one_line_error(&o, "cube.obj: is an input of this run");
     assert_eq!(snapshot(&dir), before);
 }
+
+/// Issue 51: a report folder named with a trailing separator or `.` components is the same
+/// folder; its temporary twin is staged beside it, never inside, for every command that writes
+/// a folder, a first run and a rerun over an earlier report alike.
+#[test]
+fn every_spelling_of_an_out_folder_is_the_same_folder() {
+    let dir = tmp("outputs", "spelling");
+    let scene = write(&dir, "s.toml", &tiny_bar(3, ""));
+    let (obs, _) = observed(&dir, &tiny_bar(3, ""), &["--noise", "0.001", "--seed", "3"]);
+    let base = dir.join("out");
+    let spellings = [
+        format!("{}/", base.display()),
+        format!("{}/.", base.display()),
+        format!("{}//./", base.display()),
+    ];
+    for (k, out) in spellings.iter().enumerate() {
+        for command in ["simulate", "fit", "diagnose"] {
+            let o = match command {
+                "simulate" => run(&["simulate", scene.to_str().unwrap(), "--out", out, "--json"]),
+                "fit" => run_on(
+                    "fit",
+                    &scene,
+                    &obs,
+                    Path::new(out),
+                    &["--iterations", "1", "--json"],
+                ),
+                _ => run_on(
+                    "diagnose",
+                    &scene,
+                    &obs,
+                    Path::new(out),
+                    &[
+                        "--iterations",
+                        "1",
+                        "--refits",
+                        "1",
+                        "--no-refine-check",
+                        "--json",
+                    ],
+                ),
+            };
+            let j = json(&o);
+            assert!(
+                base.is_dir() && leftovers(&base, &[]).iter().all(|n| !n.contains(".tmp-")),
+                "{command} --out {out} (spelling {k}): {:?}",
+                leftovers(&base, &[])
+            );
+            assert!(j.is_object(), "{command} --out {out}");
+            let beside: Vec<String> = leftovers(
+                &dir,
+                &["s.toml", "truth.toml", "obs.csv", "obs.cameras.json", "out"],
+            )
+            .into_iter()
+            .filter(|n| !n.ends_with(".history.jsonl"))
+            .collect();
+            assert!(beside.is_empty(), "{command} --out {out}: left {beside:?}");
+        }
+    }
+}
