@@ -134,7 +134,11 @@ pub fn scene_problem_reach(
     let steps = steps.unwrap_or(scene.time.steps);
     crate::problem::check_memory(steps, sim.grid.dof_nodes.len())
         .map_err(|e| Error::format(&scene.path, e.to_string()))?;
-    Problem::new(sim, params, cost, steps)
+    // what the parameters need from the model (a section, an effect) is the scene's to give
+    Problem::new(sim, params, cost, steps).map_err(|e| match e {
+        Error::Invalid(m) => Error::format(&scene.path, m),
+        e => e,
+    })
 }
 
 /// Evaluations kept by `x`, shared with the caller's iteration callback.
@@ -304,6 +308,9 @@ fn physical_slot<'m>(model: &'m mut Model, label: &str) -> Option<&'m mut f64> {
         ("initial_angular_velocity", c) => lane(&mut model.initial_angular_velocity, c),
         ("ground.normal", c) => lane(&mut model.ground.as_mut()?.normal, c),
         ("ground", "height") => Some(&mut model.ground.as_mut()?.height),
+        ("drag", "") => Some(&mut model.drag.as_mut()?.coefficient),
+        ("clamp", "") => model.support.as_mut(),
+        ("friction", "") => model.friction.as_mut(),
         _ => {
             let k = external_index(model, label)?.1;
             Some(&mut model.external_force.as_mut()?.coefficients[k])

@@ -67,8 +67,11 @@ pub fn gradcheck(problem: &mut Problem, rel_steps: &[f64]) -> Result<Vec<GradChe
                 }
             }
         } else {
-            let v = get_physical(&model0, &name)
-                .ok_or_else(|| Error::Invalid(format!("unknown component {name}")))?;
+            let v = get_physical(&model0, &name).ok_or_else(|| {
+                Error::Invalid(format!(
+                    "--params: `{name}` cannot be stepped by the gradient check"
+                ))
+            })?;
             let mut cost_at = |val: f64| -> Result<f64, Error> {
                 let mut m = model0.clone();
                 set_physical(&mut m, &name, val);

@@ -21,6 +21,7 @@ mod extensions;
 mod fit;
 mod mesh_cache;
 mod numerics;
+pub mod ranges;
 mod write;
 
 pub use body::{extension_error, pad, DEFAULT_RESOLUTION, PADDING_CELLS};
@@ -318,13 +319,17 @@ impl Scene {
             Error::format(path, shorten_quotes(&format!("{at}{msg}")))
         };
         let table: toml::Table = text.parse().map_err(bad)?;
+        // every number finite and in its declared range, before any section is read
+        if let Some(msg) = non_finite(text).or_else(|| ranges::out_of_range(text)) {
+            return Err(Error::format(path, msg));
+        }
         fit::check(table.get("fit")).map_err(|msg| Error::format(path, msg))?;
         let extensions = extensions::collect(text, table, path)?;
         let mut scene: Scene = toml::from_str(text).map_err(bad)?;
         scene.path = path.to_path_buf();
         scene.dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         scene.extensions = extensions;
-        scene.check(path, text)?;
+        scene.check(path)?;
         Ok(scene)
     }
 

@@ -69,3 +69,65 @@ fn a_layout_agrees_with_itself_and_restores_the_base_parts() {
     assert_eq!(f.labels, vec!["a".to_string(), "b".to_string()]);
     assert_eq!(layout.to_x(&bare), moved);
 }
+
+/// Issue 51: every parameter the fit accepts can be gradient-checked. `gradcheck` steps each
+/// physical component by its label ([`crate::fit::get_physical`], [`crate::fit::set_physical`]);
+/// over the whole vocabulary ([`ALL`], the stiffness field aside: it is stepped in its
+/// coordinates), every label a layout reports is readable and writable there, and writing it
+/// moves exactly that reported value.
+#[test]
+fn every_fitted_component_can_be_stepped_by_its_label() {
+    use crate::fit::{get_physical, set_physical};
+    let model = Model {
+        ground: Some(Ground {
+            normal: Vec3::new(0.0, 1.0, 0.0),
+            height: -0.5,
+            stiffness: 123.0,
+            softness: 45.0,
+            scheme: Default::default(),
+        }),
+        external_force: Some(ExternalForce {
+            basis: std::sync::Arc::new(vec![vec![Vec3::new(1.0, 0.0, 0.0)]; 2]),
+            coefficients: vec![0.5, -0.25],
+            labels: vec!["a".into(), "b".into()],
+        }),
+        drag: Some(cutfem::fem::NodalDamping {
+            weights: std::sync::Arc::new(vec![1.0]),
+            coefficient: 0.3,
+        }),
+        support: Some(40.0),
+        friction: Some(0.2),
+        dirichlet: vec![cutfem::fem::Aabb {
+            min: [0.0; 3],
+            max: [0.1; 3],
+        }],
+        damping_mass: 0.1,
+        damping_stiffness: 0.01,
+        initial_velocity: Vec3::new(0.1, 0.2, 0.3),
+        ..Model::default()
+    };
+    for p in ALL.iter().filter(|p| **p != Param::StiffnessField) {
+        let layout = ParamSet::parse(&[p.name()]).unwrap().layout(&model).unwrap();
+        let physical = layout.physical(&model, &PhysicalGradient::default());
+        assert!(!physical.is_empty(), "{p}");
+        for (k, (label, _)) in physical.iter().enumerate() {
+            let v = get_physical(&model, label).unwrap_or_else(|| panic!("{p}: `{label}` cannot be read"));
+            let mut m = model.clone();
+            assert!(
+                set_physical(&mut m, label, v + 0.125),
+                "{p}: `{label}` cannot be written"
+            );
+            assert_eq!(get_physical(&m, label), Some(v + 0.125), "{p}: `{label}`");
+            // only that component moved, and the layout's values see it (the ground's normal
+            // is reported as its unit vector: its components are compared as written)
+            for (j, (other, _)) in physical.iter().enumerate() {
+                let (a, b) = (get_physical(&model, other), get_physical(&m, other));
+                assert_eq!(
+                    a == b,
+                    j != k,
+                    "{p}: writing `{label}` moved `{other}`: {a:?} -> {b:?}"
+                );
+            }
+        }
+    }
+}

@@ -48,8 +48,13 @@ impl Scene {
         let mut model = self.to_model();
         for e in section_effects() {
             if self.effect_on(e.name()) {
-                e.apply(self, grid, &mut model)
-                    .map_err(|why| Error::format(&self.path, format!("{}: {why}", e.name())))?;
+                e.apply(self, grid, &mut model).map_err(|why| {
+                    // the effect's own errors may name the file already: say it once
+                    let why = why.to_string();
+                    let file = format!("{}: ", self.path.display());
+                    let why = why.strip_prefix(&file).unwrap_or(&why);
+                    Error::format(&self.path, format!("{}: {why}", e.name()))
+                })?;
             }
         }
         Ok(model)

@@ -71,11 +71,20 @@ pub fn shorten_quotes(msg: &str) -> String {
 }
 
 /// `msg` without a prefix repeated in a row (`"s.toml: body.shape: body.shape: ..."` ->
-/// `"s.toml: body.shape: ..."`): layers that each name the key they checked may meet.
+/// `"s.toml: body.shape: ..."`), and without a file name or dotted key said again further on
+/// (`"s/x.toml: drag: s/x.toml: [drag]: ..."` -> `"s/x.toml: drag: [drag]: ..."`): layers that
+/// each name the file or key they checked may meet.
 pub fn dedupe_prefixes(msg: &str) -> String {
+    // a file name or dotted key: one word with a `.` or `/` and a letter
+    let named = |p: &str| {
+        !p.contains(char::is_whitespace) && p.contains(['.', '/']) && p.chars().any(char::is_alphabetic)
+    };
     let mut parts: Vec<&str> = Vec::new();
-    for part in msg.split(": ") {
-        if parts.last() != Some(&part) || part.is_empty() {
+    let all: Vec<&str> = msg.split(": ").collect();
+    for (i, &part) in all.iter().enumerate() {
+        let last = i + 1 == all.len();
+        let again = parts.last() == Some(&part) || (named(part) && parts.contains(&part));
+        if !again || part.is_empty() || last {
             parts.push(part);
         }
     }
@@ -132,11 +141,9 @@ fn walk_value(v: &DeValue<'_>, span: std::ops::Range<usize>, key: &str, visit: &
 }
 
 impl Scene {
-    /// The checks of the module docs; `text` is the file's content (for lines).
-    pub(super) fn check(&self, path: &Path, text: &str) -> Result<(), Error> {
-        if let Some(msg) = non_finite(text) {
-            return Err(Error::format(path, msg));
-        }
+    /// The checks of the module docs on the values as read (the finiteness and the ranges of
+    /// the numbers are checked on the text before, [`Scene::parse`]).
+    pub(super) fn check(&self, path: &Path) -> Result<(), Error> {
         check_steps(self.time.steps, "time.steps").map_err(|e| Error::format(path, e))?;
         check_steps(
             self.time.steps.saturating_mul(self.time.substeps),
@@ -155,6 +162,22 @@ impl Scene {
             ));
         }
         if let Some(m) = &self.model {
+            // a repeat usually hides a typo of another name (repeated `--params` are refused too)
+            if let Some((i, e)) = m
+                .effects
+                .iter()
+                .enumerate()
+                .find(|(i, e)| m.effects[..*i].contains(e))
+            {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "model.effects: `{}` is listed twice (entry {}); list each effect once",
+                        quote(e, 100),
+                        i + 1
+                    ),
+                ));
+            }
             for e in &m.effects {
                 // a name that is not a core effect is an extension's, checked by its layer
                 let section = match e.as_str() {
@@ -260,6 +283,12 @@ mod tests {
             "s.toml: body.shape: sphere needs a radius"
         );
         assert_eq!(dedupe_prefixes("a: b: a: c"), "a: b: a: c");
+        assert_eq!(
+            dedupe_prefixes("s/x.toml: drag: s/x.toml: line 22: [drag]: bad"),
+            "s/x.toml: drag: line 22: [drag]: bad"
+        );
+        // the last part is what is wrong: it stays, whatever it repeats
+        assert_eq!(dedupe_prefixes("a.csv: b: a.csv"), "a.csv: b: a.csv");
         assert_eq!(dedupe_prefixes("plain"), "plain");
     }
 
