@@ -166,7 +166,8 @@ fn the_fit_section_is_typed_checked_on_load_and_written() {
         ("[fit]\noptimizer = 3\n", "[fit].optimizer must be a string"),
         (
             "[fit]\niterations = -1\n",
-            "[fit].iterations must be a non-negative integer",
+            // the declared range of every numeric key (`cutfem::scene::ranges`), with its line
+            "line 9: fit.iterations: must be in [0, 1e6]",
         ),
         ("fit = 3\n", "[fit] must be a table"),
     ] {
