@@ -114,7 +114,7 @@ impl Case {
         )
         .expect("diagnosis");
         eprintln!(
-            "rms {:.3e} floor {:.3e} missing {:?} ({:.1} s)\n{}",
+            "rms {:.3e} floor {:?} missing {:?} ({:.1} s)\n{}",
             d.rms,
             d.noise_floor,
             d.missing_effect,
@@ -148,7 +148,7 @@ fn check(case: &Case, d: &Diagnosis, hidden: &str, sigma: f64) -> Refined {
         .position(|c| c.effect == hidden)
         .map_or(0, |r| r + 1);
     eprintln!(
-        "CASE | {} | {hidden} | {sigma} | {rank} | {:?} | {:.3e} | {:.3e} | {:.3e} | {:.1} |",
+        "CASE | {} | {hidden} | {sigma} | {rank} | {:?} | {:.3e} | {:.3e} | {:?} | {:.1} |",
         case.shape,
         d.missing_effect,
         d.rms,
@@ -160,8 +160,8 @@ fn check(case: &Case, d: &Diagnosis, hidden: &str, sigma: f64) -> Refined {
         assert!(after * 5.0 <= d.rms, "rms {} -> {after}", d.rms);
     } else {
         assert!(
-            after <= 1.5 * d.noise_floor,
-            "rms {} -> {after}, floor {}",
+            after <= 1.5 * d.noise_floor.expect("a noise floor"),
+            "rms {} -> {after}, floor {:?}",
             d.rms,
             d.noise_floor
         );
@@ -492,7 +492,7 @@ fn nothing_hidden() {
             let case = Case::observe(&make(&effects), sigma, |_, _| {});
             let d = case.diagnose(&make(&effects));
             eprintln!(
-                "CASE | {} | none | {sigma} | - | {:?} | {:.3e} | - | {:.3e} | - |",
+                "CASE | {} | none | {sigma} | - | {:?} | {:.3e} | - | {:?} | - |",
                 case.shape, d.missing_effect, d.rms, d.noise_floor
             );
             assert_eq!(d.missing_effect, None, "{}", d.verdict);

@@ -88,7 +88,7 @@ fn difference_floor_is_within_20_percent_on_sparse_bar_samples() {
             // a misfit as large as the noise: what a missing effect or the grid leaves
             let (records, obs) = case(per_frame, sigma, 0.01, 7 + per_frame as u64);
             let f = residual_floor(&records).expect("enough pairs");
-            let plane = noise_floor(&obs, &[], &[], 0.1);
+            let plane = noise_floor(&obs, &[], &[], 0.1).expect("enough planes");
             eprintln!(
                 "{per_frame} points/frame, sigma {sigma}: residual floor {:.5} (+- {:.5}, {} points), \
                  plane fits {plane:.5}",

@@ -99,7 +99,8 @@ fn table(
             "rms".to_string(),
             format!("{:.3e}", d.rms),
             format!("{:.3e}", rms_after),
-            format!("noise floor {:.3e}", d.noise_floor),
+            d.noise_floor
+                .map_or("noise floor: none".into(), |f| format!("noise floor {f:.3e}")),
         ),
         (
             "young".into(),

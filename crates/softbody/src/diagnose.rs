@@ -119,7 +119,7 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
             &sim.grid,
             &d.model,
             &params,
-            Some(d.noise_floor),
+            d.noise_floor,
             job.quiet,
             &mut |s, t| {
                 if share {
@@ -169,7 +169,7 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     stages.push(("report".into(), Instant::now()));
     let hist_path = history::history_path(job.scene_path);
     let mut entry = Entry::now(job.command, d.effects.clone(), d.fitted.clone(), d.rms);
-    entry.noise_floor = Some(d.noise_floor);
+    entry.noise_floor = d.noise_floor;
     entry.missing_effect = d.missing_effect.clone();
     let recorded = history::record(&hist_path, &entry);
     crate::output::warn_all(&recorded.warnings);
@@ -340,7 +340,8 @@ pub struct Ready {
 }
 
 /// Reads and checks what `problem` names ([`ProblemArgs::load`]; the surface cost only, at
-/// least one observed point).
+/// least one observed point; the simulation builds and the observations are within reach,
+/// [`Loaded::check_start`]): everything is checked before any work.
 pub fn prepare(problem: &ProblemArgs) -> Result<Ready, String> {
     let loaded = problem.load()?;
     if loaded.kind != CostKind::Surface {
@@ -352,6 +353,7 @@ pub fn prepare(problem: &ProblemArgs) -> Result<Ready, String> {
             problem.observations()?.display()
         ));
     }
+    loaded.check_start(problem.observations()?, problem.steps)?;
     let cameras = match &loaded.cameras {
         Some(f) => f.cameras()?,
         None => Vec::new(),
@@ -390,11 +392,11 @@ pub fn diagnose_ready(
 /// The diagnosis for a reader, on stderr.
 pub fn print_text(d: &Diagnosis) {
     crate::note!(
-        "model as given ({}): rms {:.4e} (start {:.4e}), noise floor {:.4e} ({}{})",
+        "model as given ({}): rms {:.4e} (start {:.4e}), noise floor {} ({}{})",
         d.effects.join(", "),
         d.rms,
         d.rms_start,
-        d.noise_floor,
+        d.noise_floor.map_or("unknown".into(), |f| format!("{f:.4e}")),
         d.noise_floor_method,
         d.noise_floor_std_error
             .map_or(String::new(), |e| format!(", standard error {e:.1e}"))

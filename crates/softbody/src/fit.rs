@@ -160,7 +160,7 @@ fn discretisation(
     problem: &adjoint::problem::Problem,
     model: &cutfem::fem::Model,
     frames: Vec<usize>,
-    noise: f64,
+    noise: Option<f64>,
     quiet: bool,
 ) -> Value {
     let params = adjoint::refine::RefineParams {
@@ -168,7 +168,7 @@ fn discretisation(
         frames: Some(frames),
         ..Default::default()
     };
-    crate::refine_check::run(scene, &problem.sim.grid, model, &params, Some(noise), quiet)
+    crate::refine_check::run(scene, &problem.sim.grid, model, &params, noise, quiet)
 }
 
 /// Runs `fit`.

@@ -109,6 +109,30 @@ impl ProblemArgs {
     }
 }
 
+impl Loaded {
+    /// The checks that need the simulation, run before any work by a command that builds its
+    /// problem later (`diagnose`, each recording of a study): the scene's simulation builds (a
+    /// grid too large, an effect without what it needs), and the observations are within
+    /// reach of the simulated body at the starting parameters
+    /// ([`adjoint::fit::check_observations`], the check `fit` and `gradcheck` run on their own
+    /// problem). Costs one forward run.
+    pub fn check_start(&self, obs_path: &std::path::Path, steps: Option<usize>) -> Result<(), String> {
+        let mut problem = adjoint::fit::scene_problem(
+            &self.scene,
+            &self.observations,
+            self.params.clone(),
+            adjoint::cost::Robust::Squared,
+            steps,
+            self.kind,
+            &self.eyes,
+        )
+        .map_err(|e| e.to_string())?;
+        adjoint::fit::check_observations(&mut problem, &self.observations, obs_path)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+}
+
 impl ProblemArgs {
     /// The fitted parameters: `--params`, else the scene's `[fit].parameters`, else Young's
     /// modulus and the Poisson ratio.

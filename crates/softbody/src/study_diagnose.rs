@@ -34,7 +34,15 @@ pub fn run(args: &Args) -> Result<(), String> {
             rec.name
         ));
     }
-    // every recording read and checked before anything is written
+    // the study's cost is its file's key, not a flag the user passed
+    if let Some(cost) = study.cost.as_deref().filter(|c| *c != "surface") {
+        return Err(format!(
+            "{}: cost = \"{cost}\": diagnose measures distances to the simulated surface (cost = \"surface\")",
+            p.scene.display()
+        ));
+    }
+    // every recording read and checked (its simulation built, its observations within reach)
+    // before anything is written
     let mut ready = Vec::with_capacity(study.recordings.len());
     for rec in &study.recordings {
         let problem = recording_problem(&study, rec, &p.cost);

@@ -207,3 +207,96 @@ fn implausible_parameters_are_named_before_running() {
         "material.density: 1e250 is far outside what can be simulated: the Newmark matrix's diagonal",
     );
 }
+
+/// Issue 51: observations of another body (every point far from the model) are refused by
+/// every command with the same one line (`diagnose` reported a floor of 0 and "the
+/// observations match this model exactly"); observations whose noise cannot be estimated (one
+/// point per frame, every point at one place) give a noise floor of `null` with the reason,
+/// never a number, and a verdict that says so instead of "exact" or "nothing missing".
+#[test]
+fn unusable_observations_are_refused_or_judged_as_unknowable() {
+    let dir = tmp("trust", "unusable");
+    let text = scene(("", ""), "");
+    let s = write(&dir, "s.toml", &text);
+    let (obs, _) = observed(&dir, &text, &["--noise", "0.002", "--seed", "4"]);
+    let csv = std::fs::read_to_string(&obs).unwrap();
+    let rows: Vec<Vec<String>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    let mut seen = std::collections::BTreeSet::new();
+    let variant = |name: &str, f: &dyn Fn(&[String]) -> Option<String>| {
+        let body: Vec<String> = rows.iter().filter_map(|r| f(r)).collect();
+        write(&dir, name, &format!("frame,x,y,z\n{}\n", body.join("\n")))
+    };
+    // another body: the same cloud 50 units away
+    let far = variant("far.csv", &|r| {
+        let x: f64 = r[1].parse().unwrap();
+        Some(format!("{},{},{},{}", r[0], x + 50.0, r[2], r[3]))
+    });
+    every_command_refuses(&dir, &s, &far, None, "far.csv: none of the");
+    let firsts: Vec<String> = rows
+        .iter()
+        .filter(|r| seen.insert(r[0].clone()))
+        .map(|r| r[..4].join(","))
+        .collect();
+    assert!(firsts.len() >= 3, "{} frames", firsts.len());
+    let one = write(&dir, "one.csv", &format!("frame,x,y,z\n{}\n", firsts.join("\n")));
+    let first = rows.first().unwrap();
+    let place = variant("place.csv", &|r| {
+        Some(format!("{},{},{},{}", r[0], first[1], first[2], first[3]))
+    });
+    for (obs, name) in [
+        (&one, "one point per frame"),
+        (&place, "every point at one place"),
+    ] {
+        let out = dir.join("d");
+        let j = json(&run_on(
+            "diagnose",
+            &s,
+            obs,
+            &out,
+            &[
+                "--iterations",
+                "2",
+                "--refits",
+                "1",
+                "--no-refine-check",
+                "--json",
+            ],
+        ));
+        let verdict = j["verdict"].as_str().unwrap();
+        let floor = &j["noise_floor"];
+        assert!(
+            floor.is_null() || floor.as_f64().is_some_and(|f| f > 0.0),
+            "{name}: floor {floor}"
+        );
+        if floor.is_null() {
+            assert!(
+                j["noise_floor_method"]
+                    .as_str()
+                    .unwrap()
+                    .starts_with("cannot be estimated"),
+                "{name}: {j}"
+            );
+            assert!(
+                !verdict.contains("exact") && !verdict.starts_with("nothing missing: rms")
+                    || verdict.contains("numerical precision"),
+                "{name}: {verdict}"
+            );
+        }
+        let j = json(&run_on(
+            "fit",
+            &s,
+            obs,
+            &dir.join("f"),
+            &["--iterations", "1", "--json"],
+        ));
+        let f = &j["noise_floor"]["value"];
+        assert!(
+            f.is_null() || f.as_f64().is_some_and(|f| f > 0.0),
+            "{name}: fit floor {f}"
+        );
+    }
+}

@@ -48,30 +48,35 @@ pub struct FloorEstimate {
 /// search). Measured on the independent bar seen by a 40 x 30 depth camera at sigma 0.0025
 /// (tests/reference_values/independent/hidden, a model error as large as the noise): depth images
 /// 1.24 sigma, residuals 1.18 sigma; at sigma 0.01 to 0.04 both within 5%.
+///
+/// When neither can be estimated (one point per frame, every point at one place) the floor is
+/// `None` and the method says why ([`NO_FLOOR`]): "cannot estimate" is never a number.
 pub fn stated_floor(
     observations: &Observations,
     cameras: &[DepthCamera],
     eyes: &[[f64; 3]],
     spacing: f64,
     records: &[PointResidual],
-) -> (f64, &'static str, Option<f64>) {
+) -> (Option<f64>, &'static str, Option<f64>) {
     let residual = residual_floor(records);
-    if !cameras.is_empty() {
-        let depth = noise_floor(observations, cameras, eyes, spacing);
-        return match residual {
-            Some(f) if f.sigma < depth => (f.sigma, "residuals", Some(f.std_error)),
-            _ => (depth, "depth images", None),
-        };
-    }
-    match residual {
-        Some(f) => (f.sigma, "residuals", Some(f.std_error)),
-        None => (
-            noise_floor(observations, cameras, eyes, spacing),
-            "plane fits",
-            None,
-        ),
+    let model_free = || noise_floor(observations, cameras, eyes, spacing);
+    match (residual, cameras.is_empty()) {
+        (Some(f), true) => (Some(f.sigma), "residuals", Some(f.std_error)),
+        (None, true) => match model_free() {
+            Some(p) => (Some(p), "plane fits", None),
+            None => (None, NO_FLOOR, None),
+        },
+        (r, false) => match (r, model_free()) {
+            (Some(f), Some(d)) if f.sigma < d => (Some(f.sigma), "residuals", Some(f.std_error)),
+            (_, Some(d)) => (Some(d), "depth images", None),
+            (Some(f), None) => (Some(f.sigma), "residuals", Some(f.std_error)),
+            (None, None) => (None, NO_FLOOR, None),
+        },
     }
 }
+
+/// The method of a floor that cannot be estimated: why.
+pub const NO_FLOOR: &str = "cannot be estimated: fewer than 16 points with neighbours in their frame and camera, and too few for local planes or depth differences";
 
 /// [`stated_floor`] for the model `model` of `problem` (a fit's result): the residuals come from
 /// one forward run of `problem`'s simulation, measured as the diagnosis measures them (the
@@ -83,7 +88,7 @@ pub fn floor_at(
     cameras: &[DepthCamera],
     eyes: &[[f64; 3]],
     robust: crate::cost::Robust,
-) -> Result<(f64, &'static str, Option<f64>), crate::Error> {
+) -> Result<(Option<f64>, &'static str, Option<f64>), crate::Error> {
     let grid = &problem.sim.grid;
     let spacing = 2.0 * grid.h();
     let frames = crate::fit::observed_frames(observations, eyes);
@@ -100,7 +105,8 @@ pub fn floor_at(
 }
 
 /// The noise floor of `records` (module docs): `None` with fewer than 16 points whose
-/// neighbourhood (in the same frame and camera) gives a prediction.
+/// neighbourhood (in the same frame and camera) gives a prediction, or when the predictions
+/// are exact (repeated points: a deviation of 0 is not a measurement).
 pub fn residual_floor(records: &[PointResidual]) -> Option<FloorEstimate> {
     let mut groups: BTreeMap<(usize, Option<u32>), Vec<usize>> = BTreeMap::new();
     for (i, r) in records.iter().enumerate() {
@@ -124,6 +130,10 @@ pub fn residual_floor(records: &[PointResidual]) -> Option<FloorEstimate> {
     }
     let n = z.len();
     let sigma = 1.4826 * mad(&mut z);
+    // exactly 0 (or not a number): the points repeat one another, nothing was measured
+    if !(sigma > 0.0 && sigma.is_finite()) {
+        return None;
+    }
     Some(FloorEstimate {
         sigma,
         std_error: sigma * (1.36 * 3.0 / n as f64).sqrt(),

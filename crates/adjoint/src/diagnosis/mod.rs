@@ -152,8 +152,9 @@ pub struct Diagnosis {
     pub rms: f64,
     /// the estimated deviation of the measurement noise ([`floor::stated_floor`]): from the
     /// residuals at the fit ([`floor::residual_floor`]) or, when the cameras' intrinsics are
-    /// known and that is smaller, from the depth images ([`residuals::noise_floor`])
-    pub noise_floor: f64,
+    /// known and that is smaller, from the depth images ([`residuals::noise_floor`]); `None`
+    /// when it cannot be estimated (the method says why, [`floor::NO_FLOOR`])
+    pub noise_floor: Option<f64>,
     /// how [`Diagnosis::noise_floor`] was estimated: `"depth images"`, `"residuals"` (at the fit
     /// as given), `"residuals at the best refit"` (the candidate with the smallest rms after its
     /// refit, when that floor is smaller) or, when the residuals are too few, `"plane fits"`
@@ -355,7 +356,8 @@ pub fn diagnose(
         off: &off,
         settings,
         points: records.len(),
-        floor: noise_floor,
+        // unknown: never pruned by it
+        floor: noise_floor.unwrap_or(f64::NAN),
     };
     let candidates = search.candidates(&data, progress, total);
     if noise_floor_method != "plane fits" {
@@ -364,8 +366,8 @@ pub fn diagnose(
         // one (measured on the independent hidden-gravity bar: 2.54 sigma at the fit as given,
         // rms 13.6 sigma)
         if let Some(f) = refit_floor(&candidates, steps, &cost, setup.observations)? {
-            if f.sigma < noise_floor {
-                noise_floor = f.sigma;
+            if noise_floor.is_none_or(|n| f.sigma < n) {
+                noise_floor = Some(f.sigma);
                 noise_floor_std_error = Some(f.std_error);
                 noise_floor_method = "residuals at the best refit";
             }
@@ -377,8 +379,9 @@ pub fn diagnose(
     // nothing hidden: rms 8.9e-17, floor 7.2e-17, and an initial velocity "explained" it by
     // Delta BIC -573)
     let precision = numerical_precision(setup.observations);
-    let exact = rms <= settings.exact_ratio * noise_floor || rms <= precision;
-    let fails = !exact && rms > settings.fail_ratio * noise_floor;
+    // "exact" and "fails" are measured against the floor: without one, neither is said
+    let exact = rms <= precision || noise_floor.is_some_and(|f| rms <= settings.exact_ratio * f);
+    let fails = !exact && noise_floor.is_some_and(|f| rms > settings.fail_ratio * f);
     let missing = candidates.first().filter(|c| {
         !exact
             && c.delta_bic.is_some_and(|d| d < -settings.bic_threshold)
@@ -396,7 +399,7 @@ pub fn diagnose(
     let mut verdict = verdict::full(
         missing,
         rms,
-        noise_floor,
+        (noise_floor, noise_floor_method),
         precision,
         fails,
         &candidates,

@@ -346,13 +346,15 @@ const NEIGHBOURS: usize = 12;
 
 /// The model-free noise floor of `observations` (module docs): `cameras[c]` is camera `c`
 /// when its intrinsics are known, else `eyes[c]` its eye when known; `spacing` sizes the
-/// neighbour search of the plane fits.
+/// neighbour search of the plane fits. `None` when it cannot be estimated (fewer than 8 depth
+/// differences and 8 local planes: one point per frame, all points at one place): "cannot
+/// estimate" is never a number.
 pub fn noise_floor(
     observations: &Observations,
     cameras: &[DepthCamera],
     eyes: &[[f64; 3]],
     spacing: f64,
-) -> f64 {
+) -> Option<f64> {
     let mut second = Vec::new();
     let mut temporal = Vec::new();
     let mut planar = Vec::new();
@@ -396,7 +398,12 @@ pub fn noise_floor(
             plane_distances(group, eye, spacing, &mut planar);
         }
     }
-    let robust_sigma = |mut d: Vec<f64>| (d.len() >= 8).then(|| 1.4826 * mad(&mut d));
+    // a deviation of exactly 0 comes from repeated points, not from a measurement: no estimate
+    let robust_sigma = |mut d: Vec<f64>| {
+        (d.len() >= 8)
+            .then(|| 1.4826 * mad(&mut d))
+            .filter(|s| *s > 0.0 && s.is_finite())
+    };
     let (ns, np) = (second.len() as f64, planar.len() as f64);
     let a = match (robust_sigma(second), robust_sigma(temporal)) {
         (Some(x), Some(y)) => Some(x.min(y) / 6f64.sqrt()),
@@ -404,10 +411,8 @@ pub fn noise_floor(
     };
     let b = robust_sigma(planar).map(|m| m / (1.0 + 1.0 / NEIGHBOURS as f64).sqrt());
     match (a, b) {
-        (Some(a), Some(b)) => ((a * a * ns + b * b * np) / (ns + np)).sqrt(),
-        (Some(a), None) => a,
-        (None, Some(b)) => b,
-        (None, None) => 0.0,
+        (Some(a), Some(b)) => Some(((a * a * ns + b * b * np) / (ns + np)).sqrt()),
+        (a, b) => a.or(b),
     }
 }
 

@@ -100,14 +100,14 @@ fn with_unchecked(text: String, missing: bool, at_precision: bool, candidates: &
 pub(super) fn full(
     missing: Option<&Candidate>,
     rms: f64,
-    floor: f64,
+    (floor, method): (Option<f64>, &str),
     precision: f64,
     fails: bool,
     candidates: &[Candidate],
     on_bounds: &[(String, f64, &'static str)],
 ) -> String {
-    let text = with_unchecked(
-        verdict(
+    let text = match floor {
+        Some(floor) => verdict(
             missing,
             rms,
             floor,
@@ -115,14 +115,40 @@ pub(super) fn full(
             fails,
             candidates.iter().find(|c| c.error.is_none()),
         ),
-        missing.is_some(),
-        rms <= precision,
-        candidates,
-    );
+        None => without_floor(missing, rms, precision, method),
+    };
+    let text = with_unchecked(text, missing.is_some(), rms <= precision, candidates);
     if missing.is_none() && rms > precision {
         on_a_bound(on_bounds, text)
     } else {
         text
+    }
+}
+
+/// The verdict when the noise floor cannot be estimated (`why`): whether the rms is noise
+/// cannot be judged, so neither "nothing missing" nor "exact" is said; an effect the data name
+/// by their likelihood alone (Delta BIC) is still named.
+fn without_floor(missing: Option<&Candidate>, rms: f64, precision: f64, why: &str) -> String {
+    let floor = format!("the noise floor {why}");
+    match missing {
+        None if rms <= precision => format!(
+            "nothing missing: rms {} is at the simulation's numerical precision ({}; {floor})",
+            effects::short(rms),
+            effects::short(precision)
+        ),
+        Some(c) => format!(
+            "missing: {}. rms {} -> {} after adding it ({floor}, so how close either is to the \
+             noise is not judged). Add `{}` to [model].effects",
+            c.effect,
+            effects::short(rms),
+            effects::short(c.rms_after.unwrap_or(rms)),
+            c.effect
+        ),
+        None => format!(
+            "undecided: {floor}, so whether rms {} is noise or a missing effect cannot be judged; \
+             no candidate explains it by its likelihood alone",
+            effects::short(rms)
+        ),
     }
 }
 
@@ -213,7 +239,7 @@ mod tests {
         fails: bool,
         cs: &[Candidate],
     ) -> String {
-        super::full(m, rms, floor, precision, fails, cs, &[])
+        super::full(m, rms, (Some(floor), "test"), precision, fails, cs, &[])
     }
 
     /// Every verdict without a named effect says "undecided" and names each candidate whose

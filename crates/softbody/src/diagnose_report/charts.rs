@@ -24,7 +24,7 @@ pub(super) fn hline(y: f64, label: &str, color: [u8; 3], log: bool) -> Option<(f
 /// Picture 1: rms per frame with the noise floor (a chart alone: written as PNG and SVG).
 pub(super) fn rms_over_time(d: &Diagnosis) -> Chart {
     let pts: Vec<(f64, f64)> = d.per_frame.iter().map(|&(f, r, _)| (f as f64, r)).collect();
-    let log = spans_decade(pts.iter().map(|p| p.1).chain([d.noise_floor]));
+    let log = spans_decade(pts.iter().map(|p| p.1).chain([d.noise_floor.unwrap_or(f64::NAN)]));
     let worst: Vec<(f64, f64)> = pts
         .iter()
         .filter(|p| p.0 == d.worst_frame as f64)
@@ -41,7 +41,7 @@ pub(super) fn rms_over_time(d: &Diagnosis) -> Chart {
             Series::new(format!("worst frame {}", d.worst_frame), worst, palette(3))
                 .with_style(Style::Markers),
         ],
-        hlines: hline(d.noise_floor, "noise floor", REF_GREY, log)
+        hlines: hline(d.noise_floor.unwrap_or(f64::NAN), "noise floor", REF_GREY, log)
             .into_iter()
             .collect(),
         width: 800,
@@ -254,7 +254,10 @@ pub(super) fn candidates(d: &Diagnosis) -> Picture {
             bars.push((label, r, refit));
         }
     }
-    let values = bars.iter().map(|b| b.1).chain([d.rms, d.noise_floor]);
+    let values = bars
+        .iter()
+        .map(|b| b.1)
+        .chain([d.rms, d.noise_floor.unwrap_or(f64::NAN)]);
     let log = spans_decade(values);
     let chart = BarChart {
         title: "candidate effects: rms after adding each".into(),
@@ -263,7 +266,7 @@ pub(super) fn candidates(d: &Diagnosis) -> Picture {
         log_y: log,
         hlines: [
             hline(d.rms, "", palette(3), log),
-            hline(d.noise_floor, "", REF_GREY, log),
+            hline(d.noise_floor.unwrap_or(f64::NAN), "", REF_GREY, log),
         ]
         .into_iter()
         .flatten()

@@ -125,7 +125,7 @@ fn diagnosis() -> Diagnosis {
         fitted: vec![("young".into(), 1000.0), ("poisson".into(), 0.3)],
         rms_start: 0.05,
         rms,
-        noise_floor: 0.001,
+        noise_floor: Some(0.001),
         noise_floor_method: "depth images",
         noise_floor_std_error: None,
         on_bounds: Vec::new(),
