@@ -159,7 +159,46 @@ impl Study {
     pub fn load(path: &Path) -> Result<Study, Error> {
         let text = cutfem::input::read_string(path, cutfem::input::MAX_CONFIG_BYTES)
             .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
-        Self::parse(&text, path)
+        let study = Self::parse(&text, path)?;
+        study.check_repeats()?;
+        Ok(study)
+    }
+
+    /// Errors when two recordings are one: the same scene and the same observations (the same
+    /// files, or files of the same bytes). Fitted twice, every point would count twice and the
+    /// standard errors would shrink by sqrt(2). Unreadable files are left to their reader.
+    pub fn check_repeats(&self) -> Result<(), Error> {
+        let id = |p: &Path| {
+            cutfem::input::file_digest(p).map_or_else(
+                || {
+                    format!(
+                        "path {}",
+                        std::fs::canonicalize(p)
+                            .unwrap_or_else(|_| p.to_path_buf())
+                            .display()
+                    )
+                },
+                |d| format!("bytes {d:016x}"),
+            )
+        };
+        let ids: Vec<(String, String)> = self
+            .recordings
+            .iter()
+            .map(|r| (id(&r.scene), id(&r.observations)))
+            .collect();
+        for (j, b) in ids.iter().enumerate() {
+            if let Some(i) = ids[..j].iter().position(|a| a == b) {
+                let (ri, rj) = (&self.recordings[i], &self.recordings[j]);
+                return Err(Error::Invalid(format!(
+                    "{}: recording[{j}] (`{}`) repeats recording[{i}] (`{}`): the same scene and the same observations ({}); fitted twice, every point would count twice",
+                    self.path.display(),
+                    rj.name,
+                    ri.name,
+                    rj.observations.display()
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// Parses study text; `path` names the file in errors and anchors relative paths.

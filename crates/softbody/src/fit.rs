@@ -182,6 +182,8 @@ pub fn run(args: Args) -> Result<(), String> {
         return crate::study_fit::run_scene(&args);
     }
     let t0 = Instant::now();
+    let loaded = args.problem.load()?;
+    let fingerprint = loaded.fingerprint(crate::problem_args::steps(args.problem.steps, &loaded.scene)?);
     let Loaded {
         scene,
         section,
@@ -191,7 +193,7 @@ pub fn run(args: Args) -> Result<(), String> {
         eyes,
         cameras: camera_file,
         inputs,
-    } = args.problem.load()?;
+    } = loaded;
     let settings = Settings::new(&args, &section)?;
     if obs.is_empty() {
         return Err(format!(
@@ -229,6 +231,7 @@ pub fn run(args: Args) -> Result<(), String> {
         &out.join("fit.log"),
         earlier.as_deref(),
         &initial_values.iter().map(|(k, _)| k.clone()).collect::<Vec<_>>(),
+        &fingerprint,
         &mut x0,
     )?;
 
@@ -295,6 +298,7 @@ pub fn run(args: Args) -> Result<(), String> {
     let mut summary = outcome.json();
     summary["discretisation"] = json!(discretisation);
     summary["noise_floor"] = json!({"value": noise, "method": method, "std_error": noise_se});
+    summary["problem"] = json!(fingerprint);
     summary["seconds"] = json!(t0.elapsed().as_secs_f64());
     summary["out"] = json!(out);
     summary["files"] = files;

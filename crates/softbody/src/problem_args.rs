@@ -110,6 +110,25 @@ impl ProblemArgs {
 }
 
 impl Loaded {
+    /// The fingerprint of the problem these inputs pose: a digest
+    /// ([`cutfem::input::digest`]) of every input file's bytes (scene, body file, observations,
+    /// camera file), the fitted parameters, the simulated steps and the cost. A run's log
+    /// carries it, and a resume from a log of another problem is refused
+    /// ([`adjoint::fit::FitLog::begin`]).
+    pub fn fingerprint(&self, steps: usize) -> String {
+        let mut text = String::new();
+        for f in &self.inputs {
+            let d = cutfem::input::file_digest(f).unwrap_or(0);
+            text.push_str(&format!("{d:016x}\n"));
+        }
+        text.push_str(&format!(
+            "{}\n{steps}\n{:?}\n",
+            self.params.labels().join(","),
+            self.kind
+        ));
+        format!("{:016x}", cutfem::input::digest(text.as_bytes()))
+    }
+
     /// The checks that need the simulation, run before any work by a command that builds its
     /// problem later (`diagnose`, each recording of a study): the scene's simulation builds (a
     /// grid too large, an effect without what it needs), and the observations are within

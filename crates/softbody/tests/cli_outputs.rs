@@ -280,6 +280,29 @@ fn fit_resume_continues_the_log_of_a_killed_run() {
     );
     let log = std::fs::read_to_string(report.join("fit.log")).unwrap();
     assert_eq!(log.lines().count(), h.len());
+    assert_eq!(
+        h[0]["problem"], j["problem"],
+        "every entry carries the problem's fingerprint"
+    );
+    // issue 51: a resume of another problem with the same parameter names (another scene, or
+    // other observations) is refused naming both fingerprints, and the report stays
+    let other = write(
+        &dir,
+        "other.toml",
+        &edited(&tiny_bar(4, ""), &[("young = 2000.0", "young = 1500.0")]),
+    );
+    let (obs2, _) = (dir.join("obs2.csv"), ());
+    std::fs::write(
+        &obs2,
+        std::fs::read_to_string(&obs).unwrap().replace(",1.0", ",1.0001"),
+    )
+    .unwrap();
+    let flags = ["--params", "young", "--no-refine-check", "--resume"];
+    for (scene, o) in [(&other, &obs), (&start, &obs2)] {
+        let out = run_on("fit", scene, o, &report, &flags);
+        one_line_error(&out, "fit.log: the log is of another problem (fingerprint");
+        assert_eq!(std::fs::read_to_string(report.join("fit.log")).unwrap(), log);
+    }
 }
 
 /// No output replaces an input of its run: `observe --out` naming the scene (it overwrote the

@@ -4,6 +4,8 @@
 //!
 //! Resuming ([`FitLog::begin`] with the earlier log): the earlier entries are copied into the
 //! new log, the optimizer restarts from the last entry's `x` (the log must be of the same
+//! problem, by the fingerprint every entry carries as `problem` (a digest of the scene, the
+//! observations, the parameters, the steps and the cost, `softbody::problem_args`), of the same
 //! parameters, by the names of its `parameters`, and `x` must have as many finite values as
 //! the fit has coordinates), iteration numbers continue from the last one, and the restarted
 //! optimizer's iteration 0 (a repeat of the last entry) is not logged again. Each entry is
@@ -92,6 +94,7 @@ pub struct FitLog {
     history: Vec<Value>,
     offset: usize,
     resumed: bool,
+    problem: String,
 }
 
 impl FitLog {
@@ -99,11 +102,14 @@ impl FitLog {
     /// copied into `path` (as written, less a line cut short by a kill) and `x0` becomes the
     /// last entry's `x`. `names` are the physical values this fit logs (the keys of an entry's
     /// `parameters`): the earlier log must have been written for the same ones, with as many
-    /// coordinates as `x0`, or the start would be another fit's point.
+    /// coordinates as `x0`, or the start would be another fit's point; and for the same
+    /// `problem` (the fingerprint of the scene, observations and settings each entry carries),
+    /// or two problems would mix in one history.
     pub fn begin(
         path: &Path,
         earlier: Option<&Path>,
         names: &[String],
+        problem: &str,
         x0: &mut Vec<f64>,
     ) -> Result<FitLog, Error> {
         let mut file = std::fs::OpenOptions::new()
@@ -115,6 +121,8 @@ impl FitLog {
         if let Some(earlier) = earlier {
             let (entries, whole) = load_log(earlier)?;
             if let Some(last) = entries.last() {
+                same_problem(last, problem)
+                    .map_err(|e| Error::Invalid(format!("{}: {e}", earlier.display())))?;
                 *x0 = resume_point(last, names, x0.len())
                     .map_err(|e| Error::Invalid(format!("{}: {e}", earlier.display())))?;
             }
@@ -133,6 +141,7 @@ impl FitLog {
             resumed: !history.is_empty(),
             history,
             offset,
+            problem: problem.to_string(),
         })
     }
 
@@ -155,6 +164,7 @@ impl FitLog {
             "evaluations": rec.evaluations,
             "parameters": values_json(values),
             "x": rec.x,
+            "problem": self.problem,
         });
         // one write of the whole line: a kill cuts at most this line short
         self.file
@@ -173,6 +183,22 @@ impl FitLog {
     /// The entries, closing the log.
     pub fn into_history(self) -> Vec<Value> {
         self.history
+    }
+}
+
+/// Errors unless the earlier log's `last` entry was written for `problem` (module docs).
+fn same_problem(last: &Value, problem: &str) -> Result<(), String> {
+    match last["problem"].as_str() {
+        Some(p) if p == problem => Ok(()),
+        Some(p) => Err(format!(
+            "the log is of another problem (fingerprint {p}: another scene, observations, \
+             parameters, steps or cost), this fit's is {problem}; resume with the same inputs, \
+             or fit into another --out"
+        )),
+        None => Err(format!(
+            "the log carries no fingerprint of its problem (written by an older softbody), so \
+             it cannot be tied to this fit's ({problem}); fit into another --out"
+        )),
     }
 }
 
@@ -297,7 +323,7 @@ mod tests {
         let (first, second) = (dir.join("a.log"), dir.join("b.log"));
         let labels = ["young".to_string()];
         let mut x0 = vec![0.0, 0.0];
-        let mut log = FitLog::begin(&first, None, &labels, &mut x0).unwrap();
+        let mut log = FitLog::begin(&first, None, &labels, "p", &mut x0).unwrap();
         for i in 0..3 {
             log.record(&rec(i, i as f64), Some(0.1), &[("young".into(), 10.0 * i as f64)])
                 .unwrap();
@@ -306,7 +332,7 @@ mod tests {
         assert_eq!(read_log(&first).unwrap().len(), 3);
         // resume: restart from the last x, skip the repeated iteration 0, continue numbering
         let mut x0 = vec![0.0, 0.0];
-        let mut log = FitLog::begin(&second, Some(&first), &labels, &mut x0).unwrap();
+        let mut log = FitLog::begin(&second, Some(&first), &labels, "p", &mut x0).unwrap();
         assert_eq!(x0, vec![2.0, 4.0]);
         log.record(&rec(0, 2.0), None, &[]).unwrap();
         log.record(&rec(1, 3.0), None, &[]).unwrap();
@@ -317,24 +343,32 @@ mod tests {
         assert_eq!(entries[1]["parameters"]["young"], json!(10.0));
         // a log of other parameters, or of another count, is refused, naming them
         let both = ["young".to_string(), "poisson".to_string()];
-        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &both, &mut vec![0.0; 2])
+        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &both, "p", &mut vec![0.0; 2])
             .unwrap_err()
             .to_string();
         assert!(
             err.contains("a fit of young, this fit is of poisson,young"),
             "{err}"
         );
-        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &labels, &mut vec![0.0; 3])
+        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &labels, "p", &mut vec![0.0; 3])
             .unwrap_err()
             .to_string();
         assert!(err.contains("not 3 finite numbers"), "{err}");
+        // a log of another problem (same parameter names) is refused, naming both fingerprints
+        let err = FitLog::begin(&dir.join("c.log"), Some(&first), &labels, "q", &mut vec![0.0; 2])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("another problem (fingerprint p") && err.contains("this fit's is q"),
+            "{err}"
+        );
         // a last line cut short by a kill is left out, and the resumed log stays whole
         let good = std::fs::read_to_string(&first).unwrap();
         let torn = dir.join("torn.log");
         std::fs::write(&torn, format!("{good}{{\"iteration\": 3, \"x\": [7.0, 1")).unwrap();
         assert_eq!(read_log(&torn).unwrap().len(), 3);
         let (mut x0, resumed) = (vec![0.0, 0.0], dir.join("d.log"));
-        let mut log = FitLog::begin(&resumed, Some(&torn), &labels, &mut x0).unwrap();
+        let mut log = FitLog::begin(&resumed, Some(&torn), &labels, "p", &mut x0).unwrap();
         assert_eq!(x0, vec![2.0, 4.0]);
         log.record(&rec(1, 5.0), None, &[("young".into(), 1.0)]).unwrap();
         let entries = read_log(&resumed).unwrap();
@@ -342,7 +376,7 @@ mod tests {
         assert_eq!(entries[3]["iteration"], json!(3));
         // a whole last line without its newline is an entry like any other
         std::fs::write(&torn, good.trim_end()).unwrap();
-        let mut log = FitLog::begin(&dir.join("e.log"), Some(&torn), &labels, &mut x0).unwrap();
+        let mut log = FitLog::begin(&dir.join("e.log"), Some(&torn), &labels, "p", &mut x0).unwrap();
         log.record(&rec(1, 5.0), None, &[]).unwrap();
         assert_eq!(read_log(&dir.join("e.log")).unwrap().len(), 4);
         // a broken line before the last names the file and line
