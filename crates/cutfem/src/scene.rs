@@ -16,6 +16,7 @@
 mod body;
 mod build;
 mod check;
+mod derived;
 pub mod effects;
 mod extensions;
 mod fit;

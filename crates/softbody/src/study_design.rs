@@ -12,7 +12,7 @@ use adjoint::camera_file::CameraFile;
 use adjoint::fit::cameras_path;
 use adjoint::observe::RigParams;
 use adjoint::params::ParamSet;
-use adjoint::study::design::{candidates, predict, Current, Prediction};
+use adjoint::study::design::{checked_candidates, predict, Current, Prediction};
 use adjoint::study::{Recording, Study};
 use rayon::prelude::*;
 use serde_json::{json, Value};
@@ -97,9 +97,9 @@ pub fn design(
     let shared = ParamSet::parse(&study.shared).map_err(|e| e.to_string())?;
     let center = [0, 1, 2].map(|d| 0.5 * (lo[d] + hi[d]));
     let (rig, rig_file) = rig_like(first, center);
-    let menu = candidates(&scene, lo, hi);
+    let (menu, unusable) = checked_candidates(&scene, lo, hi);
     let bar = crate::progress::bar(menu.len() as u64, "design", false);
-    let predictions: Vec<Prediction> = menu
+    let mut predictions: Vec<Prediction> = menu
         .par_iter()
         .map(|c| {
             let p = predict(c, &shared, &study.per_recording, shared_x, current, &rig);
@@ -107,6 +107,7 @@ pub fn design(
             p
         })
         .collect();
+    predictions.extend(unusable);
     bar.finish_and_clear();
     let label = &current.labels[worst];
     let best = predictions

@@ -170,6 +170,26 @@ pub fn candidates(base: &Scene, lo: [f64; 3], hi: [f64; 3]) -> Vec<Candidate> {
     out
 }
 
+/// The menu's scenes made consistent and checked ([`Scene::derived`]): a released body has no
+/// clamp, a free flight no ground or friction. A candidate that still fails a check is dropped
+/// from the menu with its reason.
+pub fn checked_candidates(base: &Scene, lo: [f64; 3], hi: [f64; 3]) -> (Vec<Candidate>, Vec<Prediction>) {
+    let (mut ok, mut failed) = (Vec::new(), Vec::new());
+    for c in candidates(base, lo, hi) {
+        match c.scene.clone().derived(&format!("design candidate `{}`", c.name)) {
+            Ok(scene) => ok.push(Candidate { scene, ..c }),
+            Err(e) => failed.push(Prediction {
+                name: c.name,
+                what: c.what,
+                points: 0,
+                std_errors: None,
+                error: Some(e.to_string()),
+            }),
+        }
+    }
+    (ok, failed)
+}
+
 /// What adding one candidate recording would give.
 #[derive(Clone, Debug)]
 pub struct Prediction {
@@ -362,5 +382,49 @@ mod tests {
         );
         // wrong sizes are refused
         assert!(cur.with(&[1.0, 2.0], &[], 5).is_none());
+    }
+
+    /// Issue 51: every candidate of the menu, for a scene with each hold and contact the menu
+    /// edits (a ground with friction, a clamp on its box, both), is a consistent scene that
+    /// builds its simulation: a released body loses its clamp, a free flight its ground and
+    /// friction (`--design` failed for any scene with a ground or a clamp).
+    #[test]
+    fn every_candidate_of_every_scene_builds() {
+        let base = "[body]\nshape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.6, 0.2, 0.3] }\nresolution = 10\n[material]\nyoung = 2000.0\npoisson = 0.3\n[gravity]\nacceleration = [0.0, -10.0, 0.0]\n[time]\ndt = 0.01\nsteps = 4\n";
+        let ground = "[ground]\nnormal = [0.0, 1.0, 0.0]\nheight = 0.5\n[friction]\ncoefficient = 0.3\n";
+        let clamp =
+            "[[dirichlet]]\nmin = [-1.0, 0.0, -1.0]\nmax = [-0.2, 2.0, 1.0]\n[clamp]\nstiffness = 1e4\n";
+        for (extra, effects) in [
+            (ground.to_string(), "\"ground\", \"friction\""),
+            (clamp.to_string(), "\"clamp\""),
+            (format!("{ground}{clamp}"), "\"ground\", \"friction\", \"clamp\""),
+        ] {
+            let text = format!("{base}{extra}[model]\neffects = [\"gravity\", {effects}]\n");
+            let scene = Scene::parse(&text, std::path::Path::new("user.toml")).unwrap();
+            let (ok, failed) = checked_candidates(&scene, [-0.3, 0.9, -0.15], [0.3, 1.1, 0.15]);
+            assert!(
+                failed.is_empty(),
+                "{effects}: {:?}",
+                failed.iter().map(|p| &p.error).collect::<Vec<_>>()
+            );
+            assert!(ok.len() >= 3, "{effects}");
+            for c in &ok {
+                c.scene
+                    .build_simulation()
+                    .unwrap_or_else(|e| panic!("{effects}: `{}`: {e}", c.name));
+            }
+        }
+        // an edit that leaves a scene inconsistent is caught where it is made, named
+        let mut s = Scene::parse(
+            &format!("{base}[model]\neffects = [\"gravity\"]\n"),
+            std::path::Path::new("user.toml"),
+        )
+        .unwrap();
+        s.time.theta = 0.2;
+        let e = s.derived("design candidate `x`").unwrap_err().to_string();
+        assert!(
+            e.starts_with("design candidate `x` (derived from user.toml): time.theta"),
+            "{e}"
+        );
     }
 }
