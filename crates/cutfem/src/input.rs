@@ -160,6 +160,20 @@ pub fn read_string(path: &Path, max: u64) -> Result<String, Error> {
     Ok(text)
 }
 
+/// A stable 64-bit digest of `bytes` (FNV-1a): the same on every machine and Rust version, so
+/// it may be written to a file and compared by a later run (a fit log's fingerprint of its
+/// problem, a study's repeated recordings). Not cryptographic.
+pub fn digest(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// [`digest`] of a file's bytes (`None` when it cannot be read).
+pub fn file_digest(path: &Path) -> Option<u64> {
+    read(path, MAX_DATA_BYTES).ok().map(|b| digest(&b))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -209,18 +223,4 @@ mod tests {
         assert_eq!(input.size(), None);
         assert_eq!(input.head(28).unwrap(), &[0u8; 28]);
     }
-}
-
-/// A stable 64-bit digest of `bytes` (FNV-1a): the same on every machine and Rust version, so
-/// it may be written to a file and compared by a later run (a fit log's fingerprint of its
-/// problem, a study's repeated recordings). Not cryptographic.
-pub fn digest(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
-/// [`digest`] of a file's bytes (`None` when it cannot be read).
-pub fn file_digest(path: &Path) -> Option<u64> {
-    read(path, MAX_DATA_BYTES).ok().map(|b| digest(&b))
 }

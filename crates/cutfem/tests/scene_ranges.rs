@@ -112,13 +112,11 @@ fn every_numeric_key_a_scene_can_hold_is_declared() {
         .unwrap()
         .map(|e| e.unwrap().path())
         .collect();
-    for sub in ["fit"] {
-        files.extend(
-            std::fs::read_dir(dir.join(sub))
-                .unwrap()
-                .map(|e| e.unwrap().path()),
-        );
-    }
+    files.extend(
+        std::fs::read_dir(dir.join("fit"))
+            .unwrap()
+            .map(|e| e.unwrap().path()),
+    );
     for f in files
         .iter()
         .filter(|f| f.extension().is_some_and(|e| e == "toml"))

@@ -366,7 +366,7 @@ pub fn diagnose(
         // one (measured on the independent hidden-gravity bar: 2.54 sigma at the fit as given,
         // rms 13.6 sigma)
         if let Some(f) = refit_floor(&candidates, steps, &cost, setup.observations)? {
-            if noise_floor.is_none_or(|n| f.sigma < n) {
+            if noise_floor.map_or(true, |n| f.sigma < n) {
                 noise_floor = Some(f.sigma);
                 noise_floor_std_error = Some(f.std_error);
                 noise_floor_method = "residuals at the best refit";

@@ -215,10 +215,8 @@ pub fn numeric_keys(text: &str) -> Vec<String> {
     }
     fn value_keys(v: &DeValue<'_>, key: &str, out: &mut Vec<String>) {
         match v {
-            DeValue::Float(_) | DeValue::Integer(_) => {
-                if !out.iter().any(|k| k == key) {
-                    out.push(key.to_string());
-                }
+            DeValue::Float(_) | DeValue::Integer(_) if !out.iter().any(|k| k == key) => {
+                out.push(key.to_string());
             }
             DeValue::Array(a) => a.iter().for_each(|x| value_keys(x.get_ref(), key, out)),
             DeValue::Table(t) => walk_keys(t, key, out),
