@@ -54,6 +54,44 @@ max = [-0.2, 2.0, 1.0]
 effects = ["corotation", "wind"]
 "#;
 
+/// A study of two recordings with every key of the format (`docs/study.md`).
+const STUDY_SEED: &str = r#"
+[study]
+shared = ["young", "poisson"]
+per_recording = ["initial_velocity"]
+optimizer = "gauss-newton"
+iterations = 15
+cost = "surface"
+
+[[recording]]
+name = "swing"
+scene = "swing.toml"
+observations = "swing.csv"
+cameras = "swing.cameras.json"
+steps = 20
+
+[[recording]]
+scene = "push.toml"
+observations = "push.csv"
+"#;
+
+/// A study file's outcome: `Ok`, or a one-line error naming the file.
+fn check_study(bytes: &[u8]) -> Result<(), TestCaseError> {
+    let path = scratch("fuzz.study.toml", bytes);
+    let text = String::from_utf8_lossy(bytes);
+    for result in [
+        adjoint::study::Study::parse(&text, Path::new("fuzz.study.toml")),
+        adjoint::study::Study::load(&path),
+    ] {
+        if let Err(e) = result {
+            let msg = e.to_string();
+            prop_assert!(msg.contains("fuzz.study.toml"), "{}", msg);
+            prop_assert!(!msg.contains('\n'), "{}", msg);
+        }
+    }
+    Ok(())
+}
+
 /// A scratch file `name` of this process holding `bytes` (each property its own name: the
 /// properties run at once).
 fn scratch(name: &str, bytes: &[u8]) -> PathBuf {
@@ -114,6 +152,8 @@ fn seeds_are_valid() {
     assert_eq!(CameraFile::read(&p).unwrap().cameras().unwrap().len(), 2);
     let scene = Scene::parse(WIND_SEED, Path::new("seed.toml")).unwrap();
     scene.build_simulation().unwrap();
+    let study = adjoint::study::Study::parse(STUDY_SEED, Path::new("seed.study.toml")).unwrap();
+    assert_eq!(study.recordings.len(), 2);
 }
 
 proptest! {
@@ -140,6 +180,14 @@ proptest! {
     fn camera_files_never_panic(m in mutations(), b in bytes()) {
         check_cameras(&apply(CAMERA_SEED, &m))?;
         check_cameras(&b)?;
+    }
+
+    /// Mutated study files and random bytes as a study file (issue 51: the fuzzers reach the
+    /// study files).
+    #[test]
+    fn study_files_never_panic(m in mutations(), b in bytes()) {
+        check_study(&apply(STUDY_SEED, &m))?;
+        check_study(&b)?;
     }
 
     /// Mutated scenes with an extension section, through to the simulation a command builds.
