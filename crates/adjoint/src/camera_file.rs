@@ -130,6 +130,30 @@ impl CameraFile {
                 )));
             }
             let up = vector("up")?;
+            // the picture's up: not zero, not along the viewing direction (the default y
+            // included: a camera looking straight down needs its own)
+            let up_used = up.unwrap_or([0.0, 1.0, 0.0]);
+            let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            let view = target.map_or([0.0; 3], |t| [t[0] - eye[0], t[1] - eye[1], t[2] - eye[2]]);
+            let cross = [
+                view[1] * up_used[2] - view[2] * up_used[1],
+                view[2] * up_used[0] - view[0] * up_used[2],
+                view[0] * up_used[1] - view[1] * up_used[0],
+            ];
+            let along = target.is_some() && norm(cross) <= 1e-9 * norm(view) * norm(up_used);
+            if norm(up_used) == 0.0 || along {
+                return Err(bad(format!(
+                    "{}: {} {cam}",
+                    at("up"),
+                    if norm(up_used) == 0.0 {
+                        "is zero: the picture has no up".to_string()
+                    } else if up.is_none() {
+                        "not given, and the default [0, 1, 0] lies along the viewing direction: give the picture's up".to_string()
+                    } else {
+                        "lies along the viewing direction: the picture has no up".to_string()
+                    }
+                )));
+            }
             let fov_y = match &c["fov_y"] {
                 Value::Null => None,
                 v => match v.as_f64() {

@@ -59,6 +59,27 @@ fn camera_files_are_checked_against_the_csv() {
         Some(&dup),
         "dup.json: cameras[1].id: 0 is used twice (cameras[0] and cameras[1])",
     );
+    // issue 51: a picture without an up (zero, or along the viewing direction) was accepted
+    for (name, extra, says) in [
+        (
+            "upzero.json",
+            r#", "target": [0, 1, 0], "up": [0, 0, 0]"#,
+            "cameras[0].up: is zero",
+        ),
+        (
+            "upalong.json",
+            r#", "target": [0, 1, 0], "up": [0, 0, -3]"#,
+            "cameras[0].up: lies along",
+        ),
+        (
+            "down.json",
+            r#", "target": [0, -5, 2]"#,
+            "cameras[0].up: not given, and the default",
+        ),
+    ] {
+        let f = file(name, &[cam("0", extra), cam("1", "")]);
+        every_command_refuses(&dir, &s, &obs, Some(&f), &format!("{name}: {says}"));
+    }
     // a camera the CSV uses but the file lacks (was measured to the closest point instead)
     let short = file("short.json", &[cam("0", "")]);
     every_command_refuses(
