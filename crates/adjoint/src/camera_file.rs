@@ -357,8 +357,10 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("camera id 0: `target` missing"));
+        // (looking straight down: the picture's up is given, the default y would lie along
+        // the view)
         let f = parse(&cam(
-            r#", "target": [0, 0, 0], "fov_y": 0.8, "width": 8, "height": 6"#,
+            r#", "target": [0, 0, 0], "up": [0, 0, 1], "fov_y": 0.8, "width": 8, "height": 6"#,
         ))
         .unwrap();
         assert_eq!(f.cameras().unwrap()[0].height, 6);

@@ -98,6 +98,24 @@ impl Observations {
         self.frames.iter().map(|(&f, p)| (f, p.as_slice()))
     }
 
+    /// A fingerprint of the data (`cutfem::input::digest` of every point's frame, position,
+    /// camera and weight, in order; 16 hex digits): the same for the same points however the
+    /// file spelled them, so runs on one recording can be told from runs on another.
+    pub fn fingerprint(&self) -> String {
+        let mut bytes = Vec::new();
+        for (f, pts) in &self.frames {
+            bytes.extend((*f as u64).to_le_bytes());
+            for p in pts {
+                for x in p.position {
+                    bytes.extend(x.to_bits().to_le_bytes());
+                }
+                bytes.extend(p.camera.map_or(u64::MAX, u64::from).to_le_bytes());
+                bytes.extend(p.weight.to_bits().to_le_bytes());
+            }
+        }
+        format!("{:016x}", cutfem::input::digest(&bytes))
+    }
+
     /// The numbers of the frames that have points, increasing.
     pub fn frame_numbers(&self) -> Vec<usize> {
         self.frames.keys().copied().collect()

@@ -89,10 +89,21 @@ pub fn uncertainty(problem: &mut Problem, x: &[f64], ev: &Evaluation) -> Result<
     Ok(uncertainty_of(&h, rwr, n, scales, problem.params.labels()))
 }
 
+/// Why [`uncertainty`] gave none for `p` coordinates over `n` informative points: the words a
+/// report puts beside `standard_errors: null`.
+pub fn no_uncertainty_reason(n: usize, p: usize) -> String {
+    if n <= p {
+        format!("{n} informative points for {p} coordinates: no residual variance to estimate")
+    } else {
+        "the Gauss-Newton matrix is singular at the fit: a parameter the data do not determine".into()
+    }
+}
+
 /// The covariance `s^2 H^{-1}` and standard errors (module docs) from the Gauss-Newton matrix
 /// `h` (`p x p`, row-major), `r^T W r` and the count `n` over the same points, the coordinates'
 /// scales and labels: the arithmetic of [`uncertainty`], shared with the joint fits of a study
-/// ([`crate::study`]). `None` when `n <= p` or `h` is singular.
+/// ([`crate::study`]). `None` when `n <= p` or `h` is singular ([`no_uncertainty_reason`] says
+/// which); a standard error whose variance comes out negative is NaN.
 pub fn uncertainty_of(
     h: &[f64],
     rwr: f64,
@@ -107,8 +118,17 @@ pub fn uncertainty_of(
     let s2 = rwr / (n - p) as f64;
     let inv = invert_small(h, p)?;
     let cov_x: Vec<f64> = inv.iter().map(|v| v * s2).collect();
+    // a negative variance is a matrix too ill-conditioned to invert in double precision: that
+    // standard error cannot be computed (NaN, `null` in reports), it is not 0
     let std_errors = (0..p)
-        .map(|k| scales[k] * cov_x[k * p + k].max(0.0).sqrt())
+        .map(|k| {
+            let v = cov_x[k * p + k];
+            if v >= 0.0 {
+                scales[k] * v.sqrt()
+            } else {
+                f64::NAN
+            }
+        })
         .collect();
     Some(Uncertainty {
         labels,

@@ -210,7 +210,8 @@ pub fn run(a: Args) -> Result<(), String> {
     let after_values = refined.values.clone();
     let mut effects_after: Vec<String> = d.effects.clone();
     effects_after.push(missing.clone());
-    let entry = Entry::now("demo: refit", effects_after, after_values.clone(), ev.rms());
+    let mut entry = Entry::now("demo: refit", effects_after, after_values.clone(), ev.rms());
+    entry.observations = Some(obs.fingerprint());
     // the report's history picture with the refit
     let recorded = history::record(&hist, &entry);
     crate::output::warn_all(&recorded.warnings);

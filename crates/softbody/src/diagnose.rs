@@ -171,6 +171,7 @@ pub fn run_job(job: Job) -> Result<(Diagnosis, Value), String> {
     let mut entry = Entry::now(job.command, d.effects.clone(), d.fitted.clone(), d.rms);
     entry.noise_floor = d.noise_floor;
     entry.missing_effect = d.missing_effect.clone();
+    entry.observations = Some(job.observations.fingerprint());
     let recorded = history::record(&hist_path, &entry);
     crate::output::warn_all(&recorded.warnings);
     let entries = recorded.entries;

@@ -108,6 +108,8 @@ struct Outcome<'a> {
     initial: &'a [(String, f64)],
     fitted: &'a [(String, f64)],
     std_errors: Option<Vec<(String, f64)>>,
+    /// why there are none, when there are none
+    std_errors_reason: Option<String>,
     ev_initial: &'a Evaluation,
     ev_final: &'a Evaluation,
     history: &'a [Value],
@@ -125,6 +127,7 @@ impl Outcome<'_> {
             "parameters": values_json(self.fitted),
             "initial_parameters": values_json(self.initial),
             "standard_errors": self.std_errors.as_ref().map(|v| values_json(v)),
+            "standard_errors_reason": self.std_errors_reason,
             "cost": {"initial": ev_initial.cost, "final": ev_final.cost},
             "rms": {"initial": ev_initial.rms(), "final": ev_final.rms()},
             "iterations": self.history.len().saturating_sub(1),
@@ -270,6 +273,15 @@ pub fn run(args: Args) -> Result<(), String> {
     } else {
         None
     };
+    // "cannot estimate" is said with its reason, never as a number
+    let std_errors_reason = unc.is_none().then(|| {
+        if x_best.len() > 30 {
+            format!("not computed for {} coordinates (at most 30)", x_best.len())
+        } else {
+            let n = ev_final.frames.iter().map(|f| f.informative).sum();
+            adjoint::statistics::no_uncertainty_reason(n, x_best.len())
+        }
+    });
     // the noise floor at the result (as `diagnose` states it), and the discretisation share of
     // the final rms against it
     let cams = camera_file.map(|f| f.cameras()).transpose()?.unwrap_or_default();
@@ -290,6 +302,7 @@ pub fn run(args: Args) -> Result<(), String> {
         initial: &initial_values,
         fitted: &final_values,
         std_errors: unc.map(|u| u.labels.into_iter().zip(u.std_errors).collect()),
+        std_errors_reason,
         ev_initial: &ev_initial,
         ev_final: &ev_final,
         history: &history,
@@ -303,7 +316,8 @@ pub fn run(args: Args) -> Result<(), String> {
     summary["out"] = json!(out);
     summary["files"] = files;
     // the scene's history of models (`diagnose` plots the rms over them)
-    let entry = Entry::now("fit", scene.effects(), final_values.clone(), ev_final.rms());
+    let mut entry = Entry::now("fit", scene.effects(), final_values.clone(), ev_final.rms());
+    entry.observations = Some(obs.fingerprint());
     let hist = history_path(&args.problem.scene);
     let recorded = record(&hist, &entry);
     crate::output::warn_all(&recorded.warnings);

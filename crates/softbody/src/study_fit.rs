@@ -265,11 +265,12 @@ fn fit_from(
     })
 }
 
-/// The standard errors of a run's reported values (0 where unknown).
+/// The standard errors of a run's reported values (NaN where unknown: not 0, which would
+/// claim an exact value).
 fn std_errors(run: &Run, n: usize) -> Vec<f64> {
     run.unc
         .as_ref()
-        .map_or_else(|| vec![0.0; n], |u| u.std_errors.clone())
+        .map_or_else(|| vec![f64::NAN; n], |u| u.std_errors.clone())
 }
 
 /// The joint fit of `study` (from `--starts` starting points), its report and output. Under

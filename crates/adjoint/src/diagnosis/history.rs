@@ -30,6 +30,10 @@ pub struct Entry {
     pub noise_floor: Option<f64>,
     /// missing effect found (diagnosis)
     pub missing_effect: Option<String>,
+    /// the observations' fingerprint
+    /// ([`crate::observations::Observations::fingerprint`]): runs on other observations (or
+    /// of an older softbody, without one) are not compared with this one's rms
+    pub observations: Option<String>,
 }
 
 impl Entry {
@@ -43,6 +47,7 @@ impl Entry {
             rms,
             noise_floor: None,
             missing_effect: None,
+            observations: None,
         }
     }
 
@@ -60,6 +65,7 @@ impl Entry {
             "rms": self.rms,
             "noise_floor": self.noise_floor,
             "missing_effect": self.missing_effect,
+            "observations": self.observations,
         })
     }
 
@@ -83,6 +89,7 @@ impl Entry {
             rms: v["rms"].as_f64()?,
             noise_floor: v["noise_floor"].as_f64(),
             missing_effect: v["missing_effect"].as_str().map(str::to_string),
+            observations: v["observations"].as_str().map(str::to_string),
         })
     }
 }
@@ -162,7 +169,9 @@ pub struct Recorded {
 /// Appends `entry` to the history file `path` and reads the history back. The history is a
 /// by-product of a run (its report plots it), so nothing about the file fails the run: a file
 /// that cannot be written (a read-only data folder) or read, or lines that are not entries,
-/// become warnings, and the history shown is what could be read with `entry` last.
+/// become warnings, and the history shown is what could be read with `entry` last. Runs on
+/// other observations than `entry`'s (by [`Entry::observations`]; older entries have none) are
+/// left out of it with a note: their rms is of another recording.
 pub fn record(path: &Path, entry: &Entry) -> Recorded {
     let mut warnings = Vec::new();
     let written = match append(path, entry) {
@@ -197,6 +206,17 @@ pub fn record(path: &Path, entry: &Entry) -> Recorded {
     // read back, the file ends with the entry; else it is shown after what could be read
     if !written || entries.is_empty() {
         entries.push(entry.clone());
+    }
+    if let Some(fp) = &entry.observations {
+        let before = entries.len();
+        entries.retain(|e| e.observations.as_ref() == Some(fp));
+        let other = before - entries.len();
+        if other > 0 {
+            warnings.push(format!(
+                "{}: {other} earlier run(s) on other observations (or without their fingerprint) left out of the history picture: their rms is of another recording",
+                path.display()
+            ));
+        }
     }
     Recorded {
         entries,
@@ -300,6 +320,37 @@ mod tests {
             "{:?}",
             r.warnings
         );
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// Issue 51: a history mixes no two problems: the runs on other observations (or without a
+    /// fingerprint) are left out of what a run shows, with a note, and stay in the file.
+    #[test]
+    fn runs_on_other_observations_are_not_compared() {
+        let dir = std::env::temp_dir().join(format!("history-mixed-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("m.history.jsonl");
+        let _ = std::fs::remove_file(&p);
+        let e = |rms: f64, obs: Option<&str>| Entry {
+            observations: obs.map(str::to_string),
+            ..Entry::now("diagnose", vec![], vec![], rms)
+        };
+        for (rms, obs) in [(0.1, None), (0.2, Some("a")), (0.3, Some("b")), (0.4, Some("a"))] {
+            append(&p, &e(rms, obs)).unwrap();
+        }
+        let r = record(&p, &e(0.5, Some("a")));
+        assert_eq!(
+            r.entries.iter().map(|e| e.rms).collect::<Vec<_>>(),
+            [0.2, 0.4, 0.5]
+        );
+        assert!(
+            r.warnings
+                .iter()
+                .any(|w| w.contains("2 earlier run(s) on other observations")),
+            "{:?}",
+            r.warnings
+        );
+        assert_eq!(read(&p).unwrap().entries.len(), 5);
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -194,6 +194,8 @@ pub fn probe(setup: &Setup, base: &BaseFit, effect: &dyn Effect, data: &DataCont
     let run = |c: &mut Candidate| -> Result<(), Error> {
         let mut scene = base.scene.clone();
         effect.switch_on(&mut scene, data)?;
+        // the candidate's scene is checked where it is made, as a user's scene would be
+        let scene = scene.checked(&format!("the candidate `{}`", effect.name()))?;
         let (mut problem, x0) = extended_problem(setup, base, &scene, &effect.params())?;
         c.params = problem.params.labels()[base.x.len()..].to_vec();
         let (c0, n) = totals(&base.eval);

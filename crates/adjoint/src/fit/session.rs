@@ -121,10 +121,12 @@ impl FitLog {
         if let Some(earlier) = earlier {
             let (entries, whole) = load_log(earlier)?;
             if let Some(last) = entries.last() {
+                // the parameters first (the more specific words), then the whole problem
+                let x = resume_point(last, names, x0.len())
+                    .map_err(|e| Error::Invalid(format!("{}: {e}", earlier.display())))?;
                 same_problem(last, problem)
                     .map_err(|e| Error::Invalid(format!("{}: {e}", earlier.display())))?;
-                *x0 = resume_point(last, names, x0.len())
-                    .map_err(|e| Error::Invalid(format!("{}: {e}", earlier.display())))?;
+                *x0 = x;
             }
             file.write_all(whole.as_bytes())
                 .and_then(|()| file.flush())

@@ -43,6 +43,13 @@ impl Scene {
         for e in &orphans {
             self.extensions.remove(e);
         }
+        self.checked(what)
+    }
+
+    /// This scene, edited in code into `what`, checked as a scene read from a file would be
+    /// (nothing switched off: an edit that leaves it inconsistent is an error here, where it is
+    /// made, naming `what` and the scene it was derived from).
+    pub fn checked(self, what: &str) -> Result<Scene, Error> {
         let named = |e: Error| {
             let msg = e.to_string();
             let file = format!("{}: ", self.path.display());

@@ -162,6 +162,7 @@ fn history_entries() -> Vec<Entry> {
         rms,
         noise_floor: floor,
         missing_effect: None,
+        observations: None,
     };
     vec![
         entry(&["corotation"], 0.05, None),
