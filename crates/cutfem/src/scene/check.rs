@@ -313,11 +313,12 @@ mod tests {
         for (time, says) in [
             (
                 "substeps = 0",
-                "s.toml: time.substeps: must lie in 1..=1000, got 0",
+                // the declared range of the key, on the text (`super::ranges`)
+                "s.toml: line 8: time.substeps: must be in [1, 1000] (solver steps per observed step), got 0",
             ),
             (
                 "substeps = 1001",
-                "s.toml: time.substeps: must lie in 1..=1000, got 1001",
+                "s.toml: line 8: time.substeps: must be in [1, 1000] (solver steps per observed step), got 1001",
             ),
             (
                 "steps = 1000000\nsubsteps = 2",
@@ -343,7 +344,7 @@ mod tests {
         for cells in ["[0, 4, 4]", "[4, 65, 4]", "[100000, 100000, 100000]"] {
             let e = scene(cells).unwrap_err().to_string();
             assert!(
-                e.starts_with("s.toml: model.stiffness_field.cells: each must lie in 1..=64"),
+                e.starts_with("s.toml: line 8: model.stiffness_field.cells: must be in [1, 64]"),
                 "{cells}: {e}"
             );
         }

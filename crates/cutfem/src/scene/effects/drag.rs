@@ -106,7 +106,10 @@ mod tests {
             scene(extra).and_then(|s| s.build_model(&grid).map(|_| ()).map_err(|e| e.to_string()))
         };
         let e = err("[drag]\ncoefficient = -1.0\n").unwrap_err();
-        assert!(e.contains("drag.toml") && e.contains("[drag].coefficient"), "{e}");
+        assert!(
+            e.contains("drag.toml: line 8: drag.coefficient: must be >= 0"),
+            "{e}"
+        );
         let e = err("[drag]\ncoef = 1.0\n").unwrap_err();
         assert!(e.contains("drag.toml") && e.contains("coef"), "{e}");
         let e = err("[model]\neffects = [\"drag\"]\n").unwrap_err();

@@ -106,7 +106,7 @@ mod tests {
         };
         let e = err("[ground]\nheight = 0.0\n[friction]\ncoefficient = -1.0\n").unwrap_err();
         assert!(
-            e.contains("friction.toml") && e.contains("[friction].coefficient"),
+            e.contains("friction.toml: line 10: friction.coefficient: must be >= 0"),
             "{e}"
         );
         let e = err("[ground]\nheight = 0.0\n[friction]\ncoef = 1.0\n").unwrap_err();
