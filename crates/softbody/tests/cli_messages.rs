@@ -57,9 +57,10 @@ fn each_key_is_named_once() {
     let dir = tmp("messages", "once");
     let bad = "[body]\nshape = { kind = \"sphere\", center = [0.0, 1.0, 0.0], radius = -1.0 }\n";
     let o = simulate(&dir, &format!("{bad}{MATERIAL}"));
+    // the declared range of the key (`cutfem::scene::ranges`), with its line
     one_line_error(
         &o,
-        "s.toml: body.shape: sphere needs a finite center and positive radius",
+        "s.toml: line 2: body.shape.radius: must be > 0 (a radius), got -1",
     );
     assert_eq!(stderr(&o).matches("body.shape").count(), 1, "{}", stderr(&o));
 }

@@ -81,7 +81,8 @@ fn implausible_sizes_are_refused_before_anything_is_reserved() {
     );
     let out = dir.join("out");
     let out = out.to_str().unwrap();
-    let key = "time.steps: 100000000000 steps is more than the 1000000";
+    // the declared range of the key (`cutfem::scene::ranges`), with its line
+    let key = "big.toml: line 15: time.steps: must be in [0, 1e6] (every step's state is kept: lower it or raise time.dt), got 1e11";
     one_line_error(&run(&["simulate", big, "--out", out]), key);
     one_line_error(&run(&["observe", big, "--out", &format!("{out}.csv")]), key);
     one_line_error(&run(&["fit", big, "--observations", obs, "--out", out]), key);
@@ -144,7 +145,8 @@ fn implausible_sizes_are_refused_before_anything_is_reserved() {
     let cams = write(
         &dir,
         "huge.cameras.json",
-        r#"{"cameras": [{"id": 0, "eye": [0, 3, 0], "target": [0, 1, 0], "fov_y": 1.0,
+        // (looking straight down: its up is given, the default y would lie along the view)
+        r#"{"cameras": [{"id": 0, "eye": [0, 3, 0], "target": [0, 1, 0], "up": [0, 0, 1], "fov_y": 1.0,
             "width": 4294967296, "height": 2}]}"#,
     );
     one_line_error(

@@ -31,6 +31,7 @@ pub mod history;
 pub mod residuals;
 pub mod score;
 mod search;
+pub mod separate;
 mod verdict;
 
 pub use discretisation::{persistence, weigh_discretisation, FinerRun, Persistence};
@@ -189,6 +190,10 @@ pub struct Diagnosis {
     /// within [`DiagnoseParams::bic_threshold`] of its (drag and mass damping on a body of
     /// uniform thickness slow it alike)
     pub alternatives: Vec<String>,
+    /// with an alternative: the motion of the design menu that tells the named effect from the
+    /// first alternative best, and by how much their fitted models differ there
+    /// ([`separate::separating_motion`])
+    pub separation: Option<separate::Separation>,
     /// the verdict in plain words
     pub verdict: String,
     /// why the verdict is not confirmed at the finer grid, when the discretisation guard could
@@ -414,7 +419,23 @@ pub fn diagnose(
             settings.bic_threshold
         ));
     }
+    // which recording would tell them apart (a failure leaves the verdict as it is: the
+    // alternatives are named either way)
+    let separation = match (missing, alternatives.first()) {
+        (Some(m), Some(alt)) => {
+            progress("separating the alternatives", total, total);
+            candidates
+                .iter()
+                .find(|c| &c.effect == alt)
+                .and_then(|b| separate::separating_motion(m, b).ok().flatten())
+        }
+        _ => None,
+    };
+    if let Some(s) = &separation {
+        verdict.push_str(&separate::advice(s, noise_floor));
+    }
     Ok(Diagnosis {
+        separation,
         effects: on.iter().map(|e| e.name().to_string()).collect(),
         fitted: problem.params.values(&model),
         rms_start,

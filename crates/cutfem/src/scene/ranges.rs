@@ -105,7 +105,7 @@ pub const RANGES: &[KeyRange] = &[
         "time.steps",
         closed(0.0),
         closed(super::MAX_STEPS as f64),
-        "every step's state is kept",
+        "every step's state is kept: lower it or raise time.dt",
     ),
     r(
         "time.theta",

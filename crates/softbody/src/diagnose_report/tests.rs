@@ -144,6 +144,7 @@ fn diagnosis() -> Diagnosis {
         ],
         missing_effect: Some("gravity".into()),
         alternatives: Vec::new(),
+        separation: None,
         verdict: "missing: gravity".into(),
         model: Model::default(),
         fitted_scene: scene,
