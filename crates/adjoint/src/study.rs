@@ -349,6 +349,48 @@ mod tests {
         [[recording]]\nscene = \"drop.toml\"\nobservations = \"drop.csv\"\n\n\
         [[recording]]\nname = \"throw\"\nscene = \"sub/throw.toml\"\nobservations = \"throw.csv\"\ncameras = \"c.json\"\nsteps = 20\n";
 
+    /// Issue 51: two recordings of the same scene and observations (the same files, or
+    /// copies of the same bytes) are refused on load, naming both; the same scene with other
+    /// observations, or other scenes with the same observations, are two recordings.
+    #[test]
+    fn a_repeated_recording_is_refused() {
+        let dir = std::env::temp_dir().join(format!("study-repeat-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (name, text) in [
+            ("a.toml", "scene a"),
+            ("b.toml", "scene b"),
+            ("x.csv", "frame,x,y,z\n1,0,0,0\n"),
+            ("copy.csv", "frame,x,y,z\n1,0,0,0\n"),
+            ("y.csv", "frame,x,y,z\n1,1,0,0\n"),
+        ] {
+            std::fs::write(dir.join(name), text).unwrap();
+        }
+        let study = |recs: &[(&str, &str)]| {
+            let mut text = "[study]\nshared = [\"young\"]\n".to_string();
+            for (k, (scene, obs)) in recs.iter().enumerate() {
+                text.push_str(&format!(
+                    "[[recording]]\nname = \"r{k}\"\nscene = \"{scene}\"\nobservations = \"{obs}\"\n"
+                ));
+            }
+            let path = dir.join("s.toml");
+            std::fs::write(&path, text).unwrap();
+            Study::load(&path).map(|_| ()).map_err(|e| e.to_string())
+        };
+        for repeat in [
+            [("a.toml", "x.csv"), ("a.toml", "x.csv")],
+            [("a.toml", "x.csv"), ("a.toml", "copy.csv")],
+        ] {
+            let e = study(&repeat).unwrap_err();
+            assert!(
+                e.contains("recording[1] (`r1`) repeats recording[0] (`r0`)"),
+                "{e}"
+            );
+        }
+        assert!(study(&[("a.toml", "x.csv"), ("a.toml", "y.csv")]).is_ok());
+        assert!(study(&[("a.toml", "x.csv"), ("b.toml", "x.csv")]).is_ok());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
     #[test]
     fn a_study_resolves_paths_and_names() {
         assert!(is_study(TWO));
