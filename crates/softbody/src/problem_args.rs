@@ -111,18 +111,27 @@ impl ProblemArgs {
 
 impl Loaded {
     /// The fingerprint of the problem these inputs pose: a digest
-    /// ([`cutfem::input::digest`]) of every input file's bytes (scene, body file, observations,
-    /// camera file), the fitted parameters, the simulated steps and the cost. A run's log
+    /// ([`cutfem::input::digest`]) of the input files' bytes (scene, body file, camera file),
+    /// the observations' points ([`Observations::fingerprint`]), the fitted parameters, the
+    /// simulated steps and the cost. A run's log
     /// carries it, and a resume from a log of another problem is refused
     /// ([`adjoint::fit::FitLog::begin`]).
     pub fn fingerprint(&self, steps: usize) -> String {
+        // the observations as read (not their file again: it may be gigabytes), the other
+        // inputs by their bytes
+        let files = self
+            .scene
+            .input_files()
+            .into_iter()
+            .chain(self.cameras.as_ref().map(|c| c.path.clone()));
         let mut text = String::new();
-        for f in &self.inputs {
-            let d = cutfem::input::file_digest(f).unwrap_or(0);
+        for f in files {
+            let d = cutfem::input::file_digest(&f).unwrap_or(0);
             text.push_str(&format!("{d:016x}\n"));
         }
         text.push_str(&format!(
-            "{}\n{steps}\n{:?}\n",
+            "{}\n{}\n{steps}\n{:?}\n",
+            self.observations.fingerprint(),
             self.params.labels().join(","),
             self.kind
         ));

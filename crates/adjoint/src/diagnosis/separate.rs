@@ -97,12 +97,11 @@ pub fn separating_motion(a: &Candidate, b: &Candidate) -> Result<Option<Separati
     let (Some((sa, fa)), Some((sb, fb))) = (fitted(a), fitted(b)) else {
         return Ok(None);
     };
-    let recorded = rms_distance(&trajectory(&sa, fa.as_ref())?, &trajectory(&sb, fb.as_ref())?);
-    // the reference surface's box places the motions (as the design does)
-    let sim = sa.build_simulation()?;
-    let surface = sim.grid.surface()?;
+    let (ra, rb) = (trajectory(&sa, fa.as_ref())?, trajectory(&sb, fb.as_ref())?);
+    let recorded = rms_distance(&ra, &rb);
+    // the reference surface's box (frame 0: at rest) places the motions, as the design does
     let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
-    for v in &surface.mesh.vertices {
+    for v in ra.first().into_iter().flatten() {
         for d in 0..3 {
             lo[d] = lo[d].min(v[d]);
             hi[d] = hi[d].max(v[d]);

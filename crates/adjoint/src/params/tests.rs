@@ -23,9 +23,10 @@ fn a_set_without_what_it_needs_is_refused_by_name() {
     assert!(e.to_string().contains("wind"), "{e}");
 }
 
-#[test]
-fn a_layout_agrees_with_itself_and_restores_the_base_parts() {
-    let base = Model {
+/// A default model with a ground (non-default stiffness and softness) and a two-field external
+/// force labelled `a`, `b`.
+fn with_ground_and_force() -> Model {
+    Model {
         ground: Some(Ground {
             normal: Vec3::new(0.0, 1.0, 0.0),
             height: -0.5,
@@ -39,7 +40,12 @@ fn a_layout_agrees_with_itself_and_restores_the_base_parts() {
             labels: vec!["a".into(), "b".into()],
         }),
         ..Model::default()
-    };
+    }
+}
+
+#[test]
+fn a_layout_agrees_with_itself_and_restores_the_base_parts() {
+    let base = with_ground_and_force();
     let layout = ParamSet::parse(&["young,ground,external_force"])
         .unwrap()
         .layout(&base)
@@ -79,18 +85,6 @@ fn a_layout_agrees_with_itself_and_restores_the_base_parts() {
 fn every_fitted_component_can_be_stepped_by_its_label() {
     use crate::fit::{get_physical, set_physical};
     let model = Model {
-        ground: Some(Ground {
-            normal: Vec3::new(0.0, 1.0, 0.0),
-            height: -0.5,
-            stiffness: 123.0,
-            softness: 45.0,
-            scheme: Default::default(),
-        }),
-        external_force: Some(ExternalForce {
-            basis: std::sync::Arc::new(vec![vec![Vec3::new(1.0, 0.0, 0.0)]; 2]),
-            coefficients: vec![0.5, -0.25],
-            labels: vec!["a".into(), "b".into()],
-        }),
         drag: Some(cutfem::fem::NodalDamping {
             weights: std::sync::Arc::new(vec![1.0]),
             coefficient: 0.3,
@@ -104,7 +98,7 @@ fn every_fitted_component_can_be_stepped_by_its_label() {
         damping_mass: 0.1,
         damping_stiffness: 0.01,
         initial_velocity: Vec3::new(0.1, 0.2, 0.3),
-        ..Model::default()
+        ..with_ground_and_force()
     };
     for p in ALL.iter().filter(|p| **p != Param::StiffnessField) {
         let layout = ParamSet::parse(&[p.name()]).unwrap().layout(&model).unwrap();

@@ -94,49 +94,94 @@ pub fn dedupe_prefixes(msg: &str) -> String {
 /// The first float of scene `text` that is not finite (`nan`, `inf`), as
 /// `"line N: key.path: not a finite number (nan)"`.
 pub fn non_finite(text: &str) -> Option<String> {
-    let table = DeTable::parse(text).ok()?;
     let mut found = None;
-    walk_table(table.get_ref(), "", &mut |key, raw, span| {
-        if found.is_none() {
-            let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
+    each_number(text, &mut |n| {
+        // the parser refuses literals that overflow; nan and inf are what is left
+        if found.is_none() && n.float && !n.value.is_some_and(f64::is_finite) {
             found = Some(format!(
-                "line {line}: {key}: not a finite number ({})",
-                quote(raw, 20)
+                "line {}: {}: not a finite number ({})",
+                n.line,
+                n.key,
+                quote(n.raw, 20)
             ));
         }
     });
     found
 }
 
-type Visit<'a> = dyn FnMut(&str, &str, std::ops::Range<usize>) + 'a;
-
-fn walk_table(t: &DeTable<'_>, prefix: &str, visit: &mut Visit<'_>) {
-    for (k, v) in t {
-        let key = if prefix.is_empty() {
-            k.get_ref().to_string()
-        } else {
-            format!("{prefix}.{}", k.get_ref())
-        };
-        walk_value(v.get_ref(), v.span(), &key, visit);
-    }
+/// One number of a scene's text, as [`each_number`] visits it.
+pub(super) struct Number<'a> {
+    /// its key as written, array indices included (`dirichlet[0].min[2]`)
+    pub key: &'a str,
+    /// the key of its declaration, array indices dropped (`dirichlet.min`,
+    /// [`super::ranges`])
+    pub declared: &'a str,
+    /// the literal
+    pub raw: &'a str,
+    /// its value, when it parses
+    pub value: Option<f64>,
+    /// a float literal (else an integer)
+    pub float: bool,
+    /// 1-based line
+    pub line: usize,
 }
 
-fn walk_value(v: &DeValue<'_>, span: std::ops::Range<usize>, key: &str, visit: &mut Visit<'_>) {
-    match v {
-        DeValue::Float(f) => {
-            let raw = f.as_str();
-            // the parser refuses literals that overflow; nan and inf are what is left
-            if !raw.parse::<f64>().is_ok_and(f64::is_finite) {
-                visit(key, raw, span);
-            }
+/// Visits every number of scene `text` in file order (nothing when it does not parse: the
+/// parser says why): the one walk of the finiteness check, the declared ranges and their
+/// tests.
+pub(super) fn each_number(text: &str, visit: &mut dyn FnMut(&Number<'_>)) {
+    let Ok(table) = DeTable::parse(text) else {
+        return;
+    };
+    let mut walk = Walk { text, visit };
+    walk.table(table.get_ref(), "", "");
+}
+
+struct Walk<'t, 'v> {
+    text: &'t str,
+    visit: &'v mut dyn FnMut(&Number<'_>),
+}
+
+impl Walk<'_, '_> {
+    fn table(&mut self, t: &DeTable<'_>, prefix: &str, declared: &str) {
+        for (k, v) in t {
+            let join = |p: &str| {
+                if p.is_empty() {
+                    k.get_ref().to_string()
+                } else {
+                    format!("{p}.{}", k.get_ref())
+                }
+            };
+            self.value(v.get_ref(), v.span(), &join(prefix), &join(declared));
         }
-        DeValue::Array(a) => {
-            for (i, x) in a.iter().enumerate() {
-                walk_value(x.get_ref(), x.span(), &format!("{key}[{i}]"), visit);
+    }
+
+    fn value(&mut self, v: &DeValue<'_>, span: std::ops::Range<usize>, key: &str, declared: &str) {
+        let (raw, value, float) = match v {
+            DeValue::Float(f) => (f.as_str(), f.as_str().parse::<f64>().ok(), true),
+            DeValue::Integer(i) => (
+                i.as_str(),
+                i128::from_str_radix(i.as_str(), i.radix()).ok().map(|i| i as f64),
+                false,
+            ),
+            DeValue::Array(a) => {
+                for (i, x) in a.iter().enumerate() {
+                    self.value(x.get_ref(), x.span(), &format!("{key}[{i}]"), declared);
+                }
+                return;
             }
-        }
-        DeValue::Table(t) => walk_table(t, key, visit),
-        _ => {}
+            DeValue::Table(t) => return self.table(t, key, declared),
+            _ => return,
+        };
+        let line = self.text[..span.start.min(self.text.len())].matches('\n').count() + 1;
+        (self.visit)(&Number {
+            key,
+            declared,
+            raw,
+            value,
+            float,
+            line,
+        });
     }
 }
 

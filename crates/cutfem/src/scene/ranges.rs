@@ -13,8 +13,6 @@
 //! `dirichlet.min`); a numeric key of an effect's own section is declared here too when the
 //! effect is part of this crate (a third party's section checks its own keys).
 
-use toml::de::{DeTable, DeValue};
-
 /// One end of a range: the value and whether it belongs to the range.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct End {
@@ -203,30 +201,12 @@ pub fn range_of(key: &str) -> Option<&'static KeyRange> {
 
 /// Every numeric key of `text` (dotted, array indices dropped), once each, in file order.
 pub fn numeric_keys(text: &str) -> Vec<String> {
-    fn walk_keys(t: &DeTable<'_>, prefix: &str, out: &mut Vec<String>) {
-        for (k, v) in t {
-            let key = if prefix.is_empty() {
-                k.get_ref().to_string()
-            } else {
-                format!("{prefix}.{}", k.get_ref())
-            };
-            value_keys(v.get_ref(), &key, out);
+    let mut out: Vec<String> = Vec::new();
+    super::check::each_number(text, &mut |n| {
+        if !out.iter().any(|k| k == n.declared) {
+            out.push(n.declared.to_string());
         }
-    }
-    fn value_keys(v: &DeValue<'_>, key: &str, out: &mut Vec<String>) {
-        match v {
-            DeValue::Float(_) | DeValue::Integer(_) if !out.iter().any(|k| k == key) => {
-                out.push(key.to_string());
-            }
-            DeValue::Array(a) => a.iter().for_each(|x| value_keys(x.get_ref(), key, out)),
-            DeValue::Table(t) => walk_keys(t, key, out),
-            _ => {}
-        }
-    }
-    let mut out = Vec::new();
-    if let Ok(table) = DeTable::parse(text) {
-        walk_keys(table.get_ref(), "", &mut out);
-    }
+    });
     out
 }
 
@@ -234,50 +214,22 @@ pub fn numeric_keys(text: &str) -> Vec<String> {
 /// `"line N: key: must be RANGE (why), got V"`; `None` when all lie in theirs (or the text does
 /// not parse: the parser says why).
 pub fn out_of_range(text: &str) -> Option<String> {
-    let table = DeTable::parse(text).ok()?;
     let mut found = None;
-    walk(table.get_ref(), "", text, &mut found);
-    found
-}
-
-fn walk(t: &DeTable<'_>, prefix: &str, text: &str, found: &mut Option<String>) {
-    for (k, v) in t {
-        let key = if prefix.is_empty() {
-            k.get_ref().to_string()
-        } else {
-            format!("{prefix}.{}", k.get_ref())
-        };
-        value(v.get_ref(), v.span(), &key, text, found);
-    }
-}
-
-fn value(v: &DeValue<'_>, span: std::ops::Range<usize>, key: &str, text: &str, found: &mut Option<String>) {
-    if found.is_some() {
-        return;
-    }
-    let number = match v {
-        DeValue::Float(f) => f.as_str().parse::<f64>().ok(),
-        DeValue::Integer(i) => i128::from_str_radix(i.as_str(), i.radix()).ok().map(|i| i as f64),
-        DeValue::Array(a) => {
-            for x in a.iter() {
-                value(x.get_ref(), x.span(), key, text, found);
-            }
+    super::check::each_number(text, &mut |n| {
+        let (Some(x), Some(range)) = (n.value, range_of(n.declared)) else {
             return;
+        };
+        // not finite: said by the finiteness check, with its own words
+        if found.is_none() && x.is_finite() && !range.contains(x) {
+            found = Some(format!(
+                "line {}: {}: must be {} ({}), got {}",
+                n.line,
+                n.declared,
+                range.describe(),
+                range.why,
+                short(x)
+            ));
         }
-        DeValue::Table(t) => return walk(t, key, text, found),
-        _ => return,
-    };
-    let (Some(x), Some(range)) = (number, range_of(key)) else {
-        return;
-    };
-    // not finite: said by the finiteness check, with its own words
-    if x.is_finite() && !range.contains(x) {
-        let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
-        *found = Some(format!(
-            "line {line}: {key}: must be {} ({}), got {}",
-            range.describe(),
-            range.why,
-            short(x)
-        ));
-    }
+    });
+    found
 }
