@@ -121,10 +121,13 @@ impl Case {
             t.elapsed().as_secs_f64(),
             d.verdict
         );
+        for p in &d.plausibility {
+            eprintln!("  plausibility {p:?}");
+        }
         for c in &d.candidates {
             eprintln!(
-                "  {:<18} score {:>10.3e} pred {:.3e} after {:?} dBIC {:?} {:?}",
-                c.effect, c.score, c.predicted_rms, c.rms_after, c.delta_bic, c.error
+                "  {:<18} score {:>10.3e} pred {:.3e} after {:?} dBIC {:?} {:?} frees {:?}",
+                c.effect, c.score, c.predicted_rms, c.rms_after, c.delta_bic, c.error, c.frees
             );
         }
         d

@@ -239,6 +239,7 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: Option<&Path>,
                 "values": crate::fit::values_json(&c.values),
                 "suggestion": c.suggestion,
                 "error": c.error,
+                "frees": crate::fit::values_json(&c.frees),
             })
         })
         .collect();
@@ -258,6 +259,7 @@ pub fn summary_json(d: &Diagnosis, pictures: &[PathBuf], history: Option<&Path>,
             "effects": s.effects, "motion": s.motion, "what": s.what,
             "difference": finite(s.difference), "recorded": finite(s.recorded),
         })),
+        "plausibility": d.plausibility,
         "verdict": d.verdict,
         "unverified": d.unverified,
         "unchecked": adjoint::diagnosis::failed(&d.candidates).map(|(effect, error)| json!({"effect": effect, "error": error})).collect::<Vec<_>>(),

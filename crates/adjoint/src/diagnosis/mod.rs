@@ -28,6 +28,7 @@ pub mod discretisation;
 pub mod effects;
 pub mod floor;
 pub mod history;
+pub mod plausible;
 pub mod residuals;
 pub mod score;
 mod search;
@@ -194,6 +195,9 @@ pub struct Diagnosis {
     /// first alternative best, and by how much their fitted models differ there
     /// ([`separate::separating_motion`])
     pub separation: Option<separate::Separation>,
+    /// what the fitted values of the named effect imply physically, first, and of an
+    /// alternative passed over because its values are implausible ([`plausible::judge`])
+    pub plausibility: Vec<plausible::Plausibility>,
     /// the verdict in plain words
     pub verdict: String,
     /// why the verdict is not confirmed at the finer grid, when the discretisation guard could
@@ -307,7 +311,8 @@ pub fn diagnose(
     let rms_start = problem.evaluate(&x0)?.rms();
     let (x, eval) = score::fit_problem(&mut problem, &x0, settings.fit_iterations)?;
     let model = problem.model_at(&x);
-    let on_bounds = on_bounds(&problem.params.values(&model), &problem.params.bounds(&x0), &x);
+    let base_bounds = problem.params.bounds(&x0);
+    let on_bounds = on_bounds(&problem.params.values(&model), &base_bounds, &x);
     let mut fitted_scene = scene.clone();
     write_back_all(&mut fitted_scene, &model);
     let base = BaseFit {
@@ -364,7 +369,19 @@ pub fn diagnose(
         // unknown: never pruned by it
         floor: noise_floor.unwrap_or(f64::NAN),
     };
-    let candidates = search.candidates(&data, progress, total);
+    let mut candidates = search.candidates(&data, progress, total);
+    // a fit as given with a parameter on its bound is not clean: every candidate that could
+    // free it is refitted (beyond the refit budget), and the verdict says which did
+    let bounded = verdict::bounded(&base_bounds, &base.x);
+    if !bounded.is_empty() {
+        progress("refit what could free a bound", total, total);
+        search.refit_more(
+            &mut candidates,
+            |c| verdict::could_free(c, &bounded),
+            progress,
+            total,
+        );
+    }
     if noise_floor_method != "plane fits" {
         // the residual floor is an upper bound that a large smooth misfit inflates, the depth
         // images' one that shape and motion inflate: the best refit's residuals give a tighter
@@ -387,20 +404,55 @@ pub fn diagnose(
     // "exact" and "fails" are measured against the floor: without one, neither is said
     let exact = rms <= precision || noise_floor.is_some_and(|f| rms <= settings.exact_ratio * f);
     let fails = !exact && noise_floor.is_some_and(|f| rms > settings.fail_ratio * f);
-    let missing = candidates.first().filter(|c| {
-        !exact
-            && c.delta_bic.is_some_and(|d| d < -settings.bic_threshold)
-            && c.rms_after.is_some_and(|r| r < settings.min_improvement * rms)
-    });
-    let missing_effect = missing.map(|c| c.effect.clone());
-    let alternatives = match missing.and_then(|c| c.delta_bic) {
-        Some(best) => candidates[1..]
-            .iter()
-            .filter(|c| c.delta_bic.is_some_and(|d| d < best + settings.bic_threshold))
-            .map(|c| c.effect.clone())
-            .collect(),
-        None => Vec::new(),
+    let (mut missing, mut alternatives) = pick(&candidates, rms, exact, settings);
+    // what the named effect's values imply: one that explains the data only with values no
+    // body has asks for the rest of the search, and between effects the data cannot tell
+    // apart the plausible one is named
+    let judge = |c: &Candidate| match plausible::judge(c, setup.observations, noise_floor) {
+        Ok(p) => p,
+        Err(e) => Some(plausible::Plausibility {
+            effect: c.effect.clone(),
+            implies: format!("its fitted values could not be judged: {e}"),
+            implausible: None,
+        }),
     };
+    let mut judged = missing.and_then(|i| judge(&candidates[i]));
+    let mut refitted_all = false;
+    if judged.as_ref().is_some_and(|j| j.implausible.is_some()) {
+        progress(
+            "refit the rest: the named effect's values are implausible",
+            total,
+            total,
+        );
+        search.refit_more(&mut candidates, |c| search.rank(c) > 0.0, progress, total);
+        refitted_all = true;
+        (missing, alternatives) = pick(&candidates, rms, exact, settings);
+        judged = missing.and_then(|i| judge(&candidates[i]));
+    }
+    let mut passed_over = None;
+    if let (Some(m), Some(j)) = (missing, judged.as_ref().filter(|j| j.implausible.is_some())) {
+        let plausible_alt = alternatives.iter().find_map(|&a| {
+            judge(&candidates[a])
+                .filter(|p| p.implausible.is_none())
+                .map(|p| (a, p))
+        });
+        if let Some((a, p)) = plausible_alt {
+            alternatives.retain(|&x| x != a);
+            alternatives.insert(0, m);
+            missing = Some(a);
+            passed_over = Some(j.clone());
+            judged = Some(p);
+        }
+    }
+    for c in &mut candidates {
+        c.frees = verdict::freed(c, &bounded, &base_bounds);
+    }
+    let missing = missing.map(|i| &candidates[i]);
+    let missing_effect = missing.map(|c| c.effect.clone());
+    let alternatives: Vec<String> = alternatives
+        .iter()
+        .map(|&i| candidates[i].effect.clone())
+        .collect();
     let mut verdict = verdict::full(
         missing,
         rms,
@@ -410,6 +462,12 @@ pub fn diagnose(
         &candidates,
         &on_bounds,
     );
+    verdict.push_str(&verdict::plausibility(
+        judged.as_ref(),
+        passed_over.as_ref(),
+        refitted_all,
+    ));
+    verdict.push_str(&verdict::freeing(&on_bounds, &candidates, missing));
     if !alternatives.is_empty() {
         verdict.push_str(&format!(
             "\n(or {}: the data do not tell {} from {}, Delta BIC within {})",
@@ -436,6 +494,7 @@ pub fn diagnose(
     }
     Ok(Diagnosis {
         separation,
+        plausibility: judged.into_iter().chain(passed_over).collect(),
         effects: on.iter().map(|e| e.name().to_string()).collect(),
         fitted: problem.params.values(&model),
         rms_start,
@@ -462,6 +521,33 @@ pub fn diagnose(
         base_x: base.x,
         base_x_start: base.x_start,
     })
+}
+
+/// The candidate the verdict names (by index: the first, when the data favour it strongly,
+/// `Delta BIC < -threshold`, and it removes enough of the rms) and the refitted candidates the
+/// data cannot tell from it (`Delta BIC` within the threshold of its).
+fn pick(
+    candidates: &[Candidate],
+    rms: f64,
+    exact: bool,
+    settings: &DiagnoseParams,
+) -> (Option<usize>, Vec<usize>) {
+    let missing = candidates.first().filter(|c| {
+        !exact
+            && c.delta_bic.is_some_and(|d| d < -settings.bic_threshold)
+            && c.rms_after.is_some_and(|r| r < settings.min_improvement * rms)
+    });
+    let alternatives = match missing.and_then(|c| c.delta_bic) {
+        Some(best) => (1..candidates.len())
+            .filter(|&i| {
+                candidates[i]
+                    .delta_bic
+                    .is_some_and(|d| d < best + settings.bic_threshold)
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    (missing.map(|_| 0), alternatives)
 }
 
 /// The rms and point count of each observed frame: `(frame, rms, points)` in frame order.

@@ -61,6 +61,9 @@ pub struct Candidate {
     pub suggestion: String,
     /// why it could not be probed or refitted, if so
     pub error: Option<String>,
+    /// the parameters of the fit as given that ended on a bound and that this candidate's refit
+    /// moved off it, with their refitted values (empty: none, or nothing was on a bound)
+    pub frees: Vec<(String, f64)>,
     /// the refitted model
     #[serde(skip)]
     pub model: Option<Model>,
@@ -186,6 +189,7 @@ pub fn probe(setup: &Setup, base: &BaseFit, effect: &dyn Effect, data: &DataCont
         values: Vec::new(),
         suggestion: String::new(),
         error: None,
+        frees: Vec::new(),
         model: None,
         step: Vec::new(),
         x: Vec::new(),

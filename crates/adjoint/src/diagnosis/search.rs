@@ -47,12 +47,10 @@ impl Search<'_> {
             .par_iter()
             .map(|e| score::probe(setup, base, e.as_ref(), data))
             .collect();
-        let n = self.points.max(1) as f64;
-        let rank = |c: &Candidate| c.score - c.params.len() as f64 * n.ln();
-        candidates.sort_by(|a, b| rank(b).total_cmp(&rank(a)).then(a.effect.cmp(&b.effect)));
         // refit the candidates whose score beats the BIC penalty, best first
+        self.sort_by_rank(&mut candidates);
         for i in 0..settings.refits.min(candidates.len()) {
-            if candidates[i].error.is_some() || rank(&candidates[i]) <= 0.0 {
+            if candidates[i].error.is_some() || self.rank(&candidates[i]) <= 0.0 {
                 continue;
             }
             // a candidate predicted far worse than one already confirmed cannot win, unless it
@@ -74,10 +72,7 @@ impl Search<'_> {
                         .unwrap_or(f64::INFINITY)
                         .total_cmp(&b.rms_after.unwrap_or(f64::INFINITY))
                 });
-            let effect = off
-                .iter()
-                .find(|e| e.name() == candidates[i].effect)
-                .expect("listed");
+            let effect = self.effect(&candidates[i].effect);
             let reliable = effect.probe() == Probe::Score && effect.params().iter().all(|p| !p.is_log());
             // pruning is allowed only once a refit has brought the model within the fail
             // ratio of the noise floor: while the best refit still leaves it failing, every
@@ -97,27 +92,76 @@ impl Search<'_> {
                     continue;
                 }
             }
-            progress(
-                &format!("refit with {}", candidates[i].effect),
-                2 + off.len() + i,
-                total,
-            );
-            score::refit(
-                setup,
-                base,
-                effect.as_ref(),
-                &mut candidates[i],
-                settings.refit_iterations,
-            );
+            self.refit(&mut candidates[i], (2 + off.len() + i, total), progress);
         }
-        // refitted candidates by Delta BIC, then the rest by score
+        self.sort(&mut candidates);
+        candidates
+    }
+
+    /// `LM - p ln N`: a candidate's score less its BIC penalty.
+    pub(super) fn rank(&self, c: &Candidate) -> f64 {
+        c.score - c.params.len() as f64 * (self.points.max(1) as f64).ln()
+    }
+
+    /// Best rank first (ties by name).
+    fn sort_by_rank(&self, candidates: &mut [Candidate]) {
+        candidates.sort_by(|a, b| {
+            self.rank(b)
+                .total_cmp(&self.rank(a))
+                .then(a.effect.cmp(&b.effect))
+        });
+    }
+
+    /// Refitted candidates by Delta BIC, then the rest by rank.
+    fn sort(&self, candidates: &mut [Candidate]) {
         candidates.sort_by(|a, b| match (a.delta_bic, b.delta_bic) {
             (Some(x), Some(y)) => x.total_cmp(&y),
             (Some(_), None) => std::cmp::Ordering::Less,
             (None, Some(_)) => std::cmp::Ordering::Greater,
-            (None, None) => rank(b).total_cmp(&rank(a)),
+            (None, None) => self.rank(b).total_cmp(&self.rank(a)),
         });
-        candidates
+    }
+
+    /// The effect of a candidate (every candidate is one of `off`).
+    fn effect(&self, name: &str) -> &dyn Effect {
+        self.off
+            .iter()
+            .find(|e| e.name() == name)
+            .map(|e| e.as_ref())
+            .expect("a candidate is an effect that is off")
+    }
+
+    /// Refits candidate `c` ([`score::refit`]), reporting `(done, total)`.
+    fn refit(&self, c: &mut Candidate, (done, total): (usize, usize), progress: Progress) {
+        progress(&format!("refit with {}", c.effect), done.min(total), total);
+        score::refit(
+            self.setup,
+            self.base,
+            self.effect(&c.effect),
+            c,
+            self.settings.refit_iterations,
+        );
+    }
+
+    /// Refits every candidate not refitted yet, probed without error, that `pick` chooses
+    /// (beyond [`DiagnoseParams::refits`]: a parameter on its bound or an implausible winner
+    /// asks for the whole search), and sorts them again. Returns how many were refitted.
+    pub(super) fn refit_more(
+        &self,
+        candidates: &mut [Candidate],
+        pick: impl Fn(&Candidate) -> bool,
+        progress: Progress,
+        total: usize,
+    ) -> usize {
+        let mut done = 0;
+        for c in candidates.iter_mut() {
+            if c.rms_after.is_none() && c.error.is_none() && pick(c) {
+                self.refit(c, (total, total), progress);
+                done += 1;
+            }
+        }
+        self.sort(candidates);
+        done
     }
 }
 

@@ -12,6 +12,7 @@
 //! them by several noise floors would tell them apart when recorded; one below the floor would
 //! not.
 
+use super::plausible::fitted;
 use super::score::Candidate;
 use crate::Error;
 use cutfem::scene::Scene;
@@ -53,18 +54,8 @@ pub fn advice(s: &Separation, floor: Option<f64>) -> String {
 /// The surface vertices of every frame (0..=steps) of `scene`'s simulation, with a stiffness
 /// field's factors `scale` when given.
 fn trajectory(scene: &Scene, scale: Option<&std::sync::Arc<[f64]>>) -> Result<Vec<Vec<[f64; 3]>>, Error> {
-    let mut sim = scene.build_simulation()?;
-    let mut model = sim.model.clone();
-    if let Some(s) = scale {
-        model.stiffness_scale = Some(std::sync::Arc::clone(s));
-    }
-    let surface = sim.grid.surface()?;
-    sim.reset(model)?;
-    let mut out = vec![sim.grid.deformed(&surface, &sim.u).vertices];
-    for t in 1..=scene.time.steps {
-        sim.step().map_err(|e| Error::step(format!("step {t}"), e))?;
-        out.push(sim.grid.deformed(&surface, &sim.u).vertices);
-    }
+    let mut out = Vec::new();
+    super::plausible::run(scene, scale, |_, v| out.push(v))?;
     Ok(out)
 }
 
@@ -81,14 +72,6 @@ fn rms_distance(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> Option<f64> {
         }
     }
     (n > 0).then(|| (sum / n as f64).sqrt())
-}
-
-/// A candidate's refitted scene (its values written back) and its field's factors.
-fn fitted(c: &Candidate) -> Option<(Scene, Option<std::sync::Arc<[f64]>>)> {
-    let (scene, model) = (c.scene.as_ref()?, c.model.as_ref()?);
-    let mut s = scene.clone();
-    super::effects::write_back_all(&mut s, model);
-    Some((s, model.stiffness_scale.clone()))
 }
 
 /// The menu motion under which the refitted models of `a` and `b` differ most (module docs);
@@ -161,6 +144,7 @@ mod tests {
             suggestion: String::new(),
             error: None,
             model: Some(model),
+            frees: Vec::new(),
             step: Vec::new(),
             x: Vec::new(),
             scene: Some(scene),

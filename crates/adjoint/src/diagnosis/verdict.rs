@@ -13,20 +13,161 @@ pub(super) fn on_bounds(
     bounds: &[(f64, f64)],
     x: &[f64],
 ) -> Vec<(String, f64, &'static str)> {
+    bounded(bounds, x)
+        .into_iter()
+        .map(|(k, side)| {
+            let (name, value) = values.get(k).cloned().unwrap_or((format!("x[{k}]"), x[k]));
+            (name, value, side)
+        })
+        .collect()
+}
+
+/// `(coordinate, "lower" | "upper")` of the coordinates of `x` on a bound of `bounds` (within
+/// 1e-6, relative).
+pub(super) fn bounded(bounds: &[(f64, f64)], x: &[f64]) -> Vec<(usize, &'static str)> {
     let mut out = Vec::new();
     for (k, (&xk, &(lo, hi))) in x.iter().zip(bounds).enumerate() {
         let tol = 1e-6 * (1.0 + xk.abs());
-        let side = if xk <= lo + tol {
-            "lower"
+        if xk <= lo + tol {
+            out.push((k, "lower"));
         } else if xk >= hi - tol {
-            "upper"
-        } else {
-            continue;
-        };
-        let (name, value) = values.get(k).cloned().unwrap_or((format!("x[{k}]"), xk));
-        out.push((name, value, side));
+            out.push((k, "upper"));
+        }
     }
     out
+}
+
+/// Whether candidate `c` could move a coordinate of `bounded` off its bound: its probe's
+/// Gauss-Newton step points into the box there, or it was switched on without a step (no
+/// prediction: it might).
+pub(super) fn could_free(c: &Candidate, bounded: &[(usize, &'static str)]) -> bool {
+    c.step.is_empty()
+        || bounded.iter().any(|&(k, side)| {
+            c.step
+                .get(k)
+                .is_some_and(|&s| if side == "lower" { s > 0.0 } else { s < 0.0 })
+        })
+}
+
+/// The coordinates of `bounded` that candidate `c`'s refit moved off their bound of `bounds`,
+/// with their names and refitted physical values; none when the refit fits worse than the
+/// model as given (`Delta BIC >= 0`: a refit that lost its way frees nothing).
+pub(super) fn freed(
+    c: &Candidate,
+    bounded: &[(usize, &'static str)],
+    bounds: &[(f64, f64)],
+) -> Vec<(String, f64)> {
+    if c.rms_after.is_none() || !c.delta_bic.is_some_and(|d| d < 0.0) {
+        return Vec::new();
+    }
+    let still = self::bounded(bounds, &c.x[..c.x.len().min(bounds.len())]);
+    bounded
+        .iter()
+        .filter(|(k, _)| *k < c.x.len() && !still.iter().any(|(j, _)| j == k))
+        .filter_map(|&(k, _)| c.values.get(k).cloned())
+        .collect()
+}
+
+/// The verdict's line on the parameters the fit as given left on a bound: which refitted
+/// candidates moved them off it (every candidate that could was refitted), and whether the
+/// named effect (`missing`) does. Empty when nothing was on a bound.
+pub(super) fn freeing(
+    on_bounds: &[(String, f64, &'static str)],
+    candidates: &[Candidate],
+    missing: Option<&Candidate>,
+) -> String {
+    if on_bounds.is_empty() {
+        return String::new();
+    }
+    let list: Vec<String> = on_bounds
+        .iter()
+        .map(|(p, v, side)| format!("{p} = {} on its {side} bound", effects::short(*v)))
+        .collect();
+    let refitted: Vec<&Candidate> = candidates.iter().filter(|c| c.rms_after.is_some()).collect();
+    let frees: Vec<String> = refitted
+        .iter()
+        .filter(|c| !c.frees.is_empty())
+        .map(|c| {
+            let vals: Vec<String> = c
+                .frees
+                .iter()
+                .map(|(p, v)| format!("{p} = {}", effects::short(*v)))
+                .collect();
+            let bic = c.delta_bic.map_or("-".into(), |d| format!("{d:.1}"));
+            format!("{} frees it ({}; Delta BIC {bic})", c.effect, vals.join(", "))
+        })
+        .collect();
+    let stay: Vec<&str> = refitted
+        .iter()
+        .filter(|c| c.frees.is_empty())
+        .map(|c| c.effect.as_str())
+        .collect();
+    let (leave, fit) = if stay.len() == 1 {
+        ("leaves", "fits")
+    } else {
+        ("leave", "fit")
+    };
+    let mut line = format!(
+        "\n(the fit as given ended with {}; every candidate that could free it was refitted: ",
+        list.join(", ")
+    );
+    line.push_str(&match (frees.is_empty(), stay.is_empty()) {
+        (true, true) => "none could".to_string(),
+        (true, false) => format!(
+            "none frees it ({} {leave} it there or {fit} worse)",
+            stay.join(", ")
+        ),
+        (false, true) => frees.join("; "),
+        (false, false) => format!(
+            "{}; {} {leave} it there or {fit} worse",
+            frees.join("; "),
+            stay.join(", ")
+        ),
+    });
+    if let Some(m) = missing {
+        if m.frees.is_empty() {
+            line.push_str(&format!(
+                "; the short refit with {} leaves it there: check that a fit with it on frees it, \
+                 else the model is not clean yet",
+                m.effect
+            ));
+        }
+    }
+    line.push(')');
+    line
+}
+
+/// The verdict's line on the named effect's plausibility (`judged[0]`) and on an alternative
+/// passed over because its values are implausible (`passed_over`).
+pub(super) fn plausibility(
+    judged: Option<&super::plausible::Plausibility>,
+    passed_over: Option<&super::plausible::Plausibility>,
+    refitted_all: bool,
+) -> String {
+    let mut line = String::new();
+    if let Some(p) = judged {
+        match &p.implausible {
+            None => line.push_str(&format!("\n({}: {})", p.effect, p.implies)),
+            Some(why) => line.push_str(&format!(
+                "\nimplausible values: {} explains the data only so: {why}; {}",
+                p.effect,
+                if refitted_all {
+                    "every other candidate was refitted, and none explains the data alike with \
+                     plausible values"
+                } else {
+                    "no other candidate could be refitted"
+                }
+            )),
+        }
+    }
+    if let Some(p) = passed_over {
+        line.push_str(&format!(
+            "\n({} fits alike, but not as a body can: {})",
+            p.effect,
+            p.implausible.as_deref().unwrap_or(&p.implies)
+        ));
+    }
+    line
 }
 
 /// The candidates whose probe or refit failed: `(effect, error)`, in their order.
@@ -225,6 +366,7 @@ mod tests {
             suggestion: String::new(),
             error: error.map(str::to_string),
             model: None,
+            frees: Vec::new(),
             step: Vec::new(),
             x: Vec::new(),
             scene: None,
@@ -317,5 +459,94 @@ mod tests {
             ]
         );
         assert!(super::on_bounds(&values, &bounds, &[5.0, 0.0, 0.0]).is_empty());
+    }
+
+    /// A candidate could free a bounded coordinate when its probe's step points into the box
+    /// there (or it has no step); its refit frees it when the refitted coordinate left the
+    /// bound; the verdict's line names which did, which did not, and a named effect that
+    /// leaves it there.
+    #[test]
+    fn every_candidate_that_could_free_a_bound_is_named_with_what_it_did() {
+        let bounds = [(0.0, 10.0), (-3.0, 3.0)];
+        let bounded = super::bounded(&bounds, &[5.0, -3.0]);
+        assert_eq!(bounded, vec![(1, "lower")]);
+        let mut up = candidate("clamp", Some(0.01), None);
+        up.step = vec![0.1, 0.5, 1.0];
+        let mut down = candidate("drag", Some(0.02), None);
+        down.step = vec![0.1, -0.5, 1.0];
+        let switch = candidate("corotation", Some(0.03), None);
+        assert!(super::could_free(&up, &bounded));
+        assert!(!super::could_free(&down, &bounded));
+        assert!(super::could_free(&switch, &bounded), "no step: no prediction");
+        up.x = vec![5.0, 0.2, 1.0];
+        up.values = vec![
+            ("young".into(), 2000.0),
+            ("poisson".into(), 0.28),
+            ("clamp".into(), 1e4),
+        ];
+        down.x = vec![5.0, -3.0, 1.0];
+        down.values = vec![
+            ("young".into(), 2100.0),
+            ("poisson".into(), 0.01),
+            ("drag".into(), 1.0),
+        ];
+        assert_eq!(
+            super::freed(&up, &bounded, &bounds),
+            vec![("poisson".to_string(), 0.28)]
+        );
+        assert!(super::freed(&down, &bounded, &bounds).is_empty());
+        let mut not_refitted = up.clone();
+        not_refitted.rms_after = None;
+        assert!(super::freed(&not_refitted, &bounded, &bounds).is_empty());
+        let mut worse = up.clone();
+        worse.delta_bic = Some(12.0);
+        assert!(
+            super::freed(&worse, &bounded, &bounds).is_empty(),
+            "a worse fit frees nothing"
+        );
+        up.frees = super::freed(&up, &bounded, &bounds);
+        let on = [("poisson".to_string(), 0.01, "lower")];
+        let line = super::freeing(&on, &[up.clone(), down.clone()], Some(&down));
+        assert!(
+            line.starts_with("\n(the fit as given ended with poisson = 0.01 on its lower bound; every candidate that could free it was refitted: clamp frees it (poisson = 0.28; Delta BIC -50.0); drag leaves it there or fits worse; the short refit with drag leaves it there"),
+            "{line}"
+        );
+        assert!(super::freeing(&on, &[down.clone()], None)
+            .contains("none frees it (drag leaves it there or fits worse)"));
+        assert!(super::freeing(&[], &[up, down], None).is_empty());
+    }
+
+    /// The named effect's plausibility is stated; implausible values are said in words, with
+    /// whether the rest of the search was refitted, and an alternative passed over for them is
+    /// named with its reason.
+    #[test]
+    fn implausible_values_are_said_in_words() {
+        use super::super::plausible::Plausibility;
+        let ok = Plausibility {
+            effect: "ground".into(),
+            implies: "the plane comes within 0.001 of the fitted body (frame 7)".into(),
+            implausible: None,
+        };
+        let bad = Plausibility {
+            effect: "drag".into(),
+            implies: String::new(),
+            implausible: Some("drag holds up 95% of the body's weight".into()),
+        };
+        assert_eq!(
+            super::plausibility(Some(&ok), None, false),
+            "\n(ground: the plane comes within 0.001 of the fitted body (frame 7))"
+        );
+        let v = super::plausibility(Some(&bad), None, true);
+        assert!(
+            v.starts_with("\nimplausible values: drag explains the data only so: drag holds up 95%"),
+            "{v}"
+        );
+        assert!(v.contains("every other candidate was refitted"), "{v}");
+        let v = super::plausibility(Some(&ok), Some(&bad), true);
+        assert!(
+            v.ends_with("\n(drag fits alike, but not as a body can: drag holds up 95% of the body's weight)"),
+            "{v}"
+        );
+        assert!(super::plausibility(None, None, false).is_empty());
     }
 }

@@ -116,6 +116,7 @@ fn diagnosis() -> Diagnosis {
         error: None,
         model: None,
         scene: None,
+        frees: Vec::new(),
         step: Vec::new(),
         x: Vec::new(),
     };
@@ -145,6 +146,7 @@ fn diagnosis() -> Diagnosis {
         missing_effect: Some("gravity".into()),
         alternatives: Vec::new(),
         separation: None,
+        plausibility: Vec::new(),
         verdict: "missing: gravity".into(),
         model: Model::default(),
         fitted_scene: scene,
@@ -468,6 +470,17 @@ fn failed_candidates_and_guards_are_in_plain_sight() {
         v["unverified"].as_str().unwrap().contains("not enough memory"),
         "{v}"
     );
+    // what the named effect's values imply, and what each refit freed, are in the JSON
+    d.plausibility = vec![adjoint::diagnosis::plausible::Plausibility {
+        effect: "gravity".into(),
+        implies: "g = 9.81".into(),
+        implausible: Some("a test".into()),
+    }];
+    d.candidates[0].frees = vec![("poisson".into(), 0.28)];
+    let v = crate::diagnose::summary_json(&d, &[], None, 1.0);
+    assert_eq!(v["plausibility"][0]["implausible"], "a test", "{v}");
+    assert_eq!(v["candidates"][0]["frees"]["poisson"], 0.28, "{v}");
+    assert!(v["candidates"][1]["frees"].as_object().is_some_and(|o| o.is_empty()), "{v}");
     // nothing named: nothing to verify
     let mut none = diagnosis();
     none.missing_effect = None;

@@ -2,7 +2,7 @@
 //! right-hand side. Neutral: `a1 = a2 = 0` (fits start at [`crate::params::DAMPING_FLOOR`]
 //! because both are fitted in log space). Adjoint: `dJ/da1`, `dJ/da2` in [`crate::backward`].
 
-use super::{add_effect, short, DataContext, Effect, Probe};
+use super::{add_effect, short, DataContext, Effect, Judgement, Motion, Probe};
 use crate::params::Param;
 use crate::Error;
 use cutfem::fem::Model;
@@ -45,5 +45,20 @@ impl Effect for Damping {
             short(model.damping_mass),
             short(model.damping_stiffness)
         )
+    }
+    fn judge(&self, model: &Model, motion: &Motion) -> Option<Judgement> {
+        let (a1, a2) = (model.damping_mass, model.damping_stiffness);
+        // the mass term on the rigid motion: a force a1 m per unit speed (a free body's drag)
+        let mut j = super::super::plausible::terminal("mass damping", a1 * motion.mass, motion);
+        if let Some(w) = motion.frequency.filter(|w| *w > 0.0) {
+            j.implies = format!(
+                "damping ratio {} at the recorded deformation's frequency {} rad/s (period {}); {}",
+                short(a1 / (2.0 * w) + a2 * w / 2.0),
+                short(w),
+                short(std::f64::consts::TAU / w),
+                j.implies
+            );
+        }
+        Some(j)
     }
 }

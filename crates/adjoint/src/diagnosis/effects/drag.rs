@@ -10,7 +10,7 @@
 //! distributed over the body (interior against surface, thin against thick parts) and, at equal
 //! fit, by the BIC's count of parameters (drag: 1, damping: 2).
 
-use super::{add_effect, short, DataContext, Effect, Probe};
+use super::{add_effect, short, DataContext, Effect, Judgement, Motion, Probe};
 use crate::params::Param;
 use crate::Error;
 use cutfem::fem::Model;
@@ -52,5 +52,15 @@ impl Effect for Drag {
             "[drag]\ncoefficient = {}",
             short(model.drag.as_ref().map_or(0.0, |d| d.coefficient))
         )
+    }
+    fn judge(&self, model: &Model, motion: &Motion) -> Option<Judgement> {
+        // the force per unit speed on a rigid motion: c times the surface area
+        let d = model.drag.as_ref()?;
+        let area: f64 = d.weights.iter().sum();
+        Some(super::super::plausible::terminal(
+            "drag",
+            d.coefficient * area,
+            motion,
+        ))
     }
 }

@@ -6,7 +6,7 @@
 //! few noisy points), or through the body's lowest reference point when that is lower (cameras
 //! may not see the bottom; a plane must not cut the body at rest).
 
-use super::{add_effect, short, toml_vec, DataContext, Effect, Probe};
+use super::{add_effect, short, toml_vec, DataContext, Effect, Judgement, Motion, Probe};
 use crate::params::Param;
 use crate::Error;
 use cutfem::fem::Model;
@@ -87,5 +87,10 @@ impl Effect for GroundContact {
             ),
             None => "[ground]".into(),
         }
+    }
+    fn judge(&self, model: &Model, motion: &Motion) -> Option<Judgement> {
+        let g = model.ground.as_ref()?;
+        let n = [g.normal.x, g.normal.y, g.normal.z];
+        Some(super::super::plausible::plane(n, g.height, motion))
     }
 }

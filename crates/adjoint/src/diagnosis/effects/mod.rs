@@ -60,6 +60,7 @@ pub use initial_velocity::InitialVelocity;
 pub use stiffness_field::StiffnessField;
 pub use wind::Wind;
 
+use super::plausible::{Judgement, Motion};
 use crate::observations::Observations;
 use crate::params::Param;
 use crate::Error;
@@ -112,6 +113,11 @@ pub trait Effect: Send + Sync {
     fn write_back(&self, scene: &mut Scene, model: &Model);
     /// The TOML the user adds to the scene to switch it on with the values of `model`.
     fn suggestion(&self, model: &Model) -> String;
+    /// What the fitted values of `model` imply physically over the fitted model's own `motion`,
+    /// and why no body could do that, if so ([`super::plausible`]); `None`: nothing to judge.
+    fn judge(&self, _model: &Model, _motion: &Motion) -> Option<Judgement> {
+        None
+    }
 }
 
 /// The effects of the vocabulary, in the interface's order.

@@ -4,7 +4,7 @@
 //! forces and Nitsche terms by `s_e`; the adjoint collects `dJ/ds_e` per cell
 //! ([`crate::backward::PhysicalGradient::cell_scale`]). Neutral: all `c_k = 0` (homogeneous).
 
-use super::{add_effect, DataContext, Effect, Probe};
+use super::{add_effect, DataContext, Effect, Judgement, Motion, Probe};
 use crate::params::Param;
 use crate::Error;
 use cutfem::fem::Model;
@@ -52,5 +52,10 @@ impl Effect for StiffnessField {
             "[model]\nstiffness_field = {{ cells = [{}, {}, {}] }}",
             self.cells[0], self.cells[1], self.cells[2]
         )
+    }
+    fn judge(&self, model: &Model, _: &Motion) -> Option<Judgement> {
+        Some(super::super::plausible::contrast(
+            model.stiffness_scale.as_deref()?,
+        ))
     }
 }
