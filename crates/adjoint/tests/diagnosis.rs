@@ -521,20 +521,31 @@ fn box_dropped_onto_a_missing_ground() {
             30,
         )
     };
-    let case = Case::observe(&make(&["gravity", "ground", "damping", "corotation"]), 0.002, |_, _| {});
+    let case = Case::observe(
+        &make(&["gravity", "ground", "damping", "corotation"]),
+        0.002,
+        |_, _| {},
+    );
     let d = case.diagnose(&make(&["gravity", "damping", "corotation"]));
     assert_eq!(d.missing_effect.as_deref(), Some("ground"), "{}", d.verdict);
     let named = &d.plausibility[0];
     assert_eq!(named.effect, "ground");
     assert!(named.implausible.is_none(), "{named:?}");
-    let drag = d.candidates.iter().find(|c| c.effect == "drag").expect("drag probed");
+    let drag = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == "drag")
+        .expect("drag probed");
     assert!(drag.rms_after.is_some(), "drag refitted: {}", d.verdict);
     let judged = adjoint::diagnosis::plausible::judge(drag, &case.obs, d.noise_floor)
         .unwrap()
         .expect("drag is judged");
     eprintln!("drag: {judged:?}");
     assert!(
-        judged.implausible.as_deref().is_some_and(|w| w.contains("terminal velocity")),
+        judged
+            .implausible
+            .as_deref()
+            .is_some_and(|w| w.contains("terminal velocity")),
         "{judged:?}"
     );
 }

@@ -331,13 +331,23 @@ fn verdict(
         ),
         None => match best_checked {
             Some(c) => format!(
-                "nothing missing from the catalogue: rms {} exceeds the noise floor {}, but the best \
-                 candidate ({}) only reaches {}; the misfit may come from an effect outside the \
-                 catalogue",
+                "nothing missing from the catalogue: rms {} exceeds the noise floor {}, but {}; the \
+                 misfit may come from an effect outside the catalogue",
                 effects::short(rms),
                 effects::short(floor),
-                c.effect,
-                c.rms_after.map_or("-".into(), effects::short)
+                match c.rms_after {
+                    Some(r) => format!(
+                        "the best candidate ({}) only reaches {}",
+                        c.effect,
+                        effects::short(r)
+                    ),
+                    // none was refitted: no score beat its BIC penalty
+                    None => format!(
+                        "no candidate's score beats its BIC penalty (the best, {}, scores {})",
+                        c.effect,
+                        effects::short(c.score)
+                    ),
+                }
             ),
             None => format!(
                 "nothing missing from the catalogue: every effect is on; rms {} vs noise floor {}",
@@ -403,7 +413,14 @@ mod tests {
             assert!(!v.starts_with("nothing missing"), "{v}");
             // the checked candidate is the one the text reports on
             if fails {
-                assert!(v.contains("the best candidate (drag)"), "{v}");
+                assert!(v.contains("the best candidate (drag) only reaches 0.0099"), "{v}");
+                let mut unrefitted = ok.clone();
+                unrefitted.rms_after = None;
+                let u = verdict(None, rms, floor, precision, fails, &[unrefitted]);
+                assert!(
+                    u.contains("no candidate's score beats its BIC penalty (the best, drag, scores 10)"),
+                    "{u}"
+                );
             }
         }
         let named = candidate("damping", Some(0.0101), None);

@@ -480,7 +480,12 @@ fn failed_candidates_and_guards_are_in_plain_sight() {
     let v = crate::diagnose::summary_json(&d, &[], None, 1.0);
     assert_eq!(v["plausibility"][0]["implausible"], "a test", "{v}");
     assert_eq!(v["candidates"][0]["frees"]["poisson"], 0.28, "{v}");
-    assert!(v["candidates"][1]["frees"].as_object().is_some_and(|o| o.is_empty()), "{v}");
+    assert!(
+        v["candidates"][1]["frees"]
+            .as_object()
+            .is_some_and(|o| o.is_empty()),
+        "{v}"
+    );
     // nothing named: nothing to verify
     let mut none = diagnosis();
     none.missing_effect = None;
