@@ -32,6 +32,9 @@ import time
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from evaluate import scenario_folders  # noqa: E402  one walk over draw folders
+
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 # the effects the diagnosis probes, with the scene section each one reads
 HIDEABLE = {
@@ -42,20 +45,6 @@ HIDEABLE = {
     "drag": "drag",
     "corotation": None,
 }
-
-
-def scenarios(paths):
-    """Every folder with a scene.toml and truth.json under `paths`, sorted."""
-    out = []
-    for p in paths:
-        if os.path.exists(os.path.join(p, "truth.json")):
-            out.append(p)
-            continue
-        for name in sorted(os.listdir(p)):
-            q = os.path.join(p, name)
-            if os.path.exists(os.path.join(q, "truth.json")):
-                out.append(q)
-    return out
 
 
 def without(text, effect):
@@ -210,12 +199,17 @@ def table(paths):
     rows = [json.loads(l) for p in paths for l in open(p) if l.strip()]
     hidden = [r for r in rows if r["kind"] == "hidden" and "error" not in r]
     controls = [r for r in rows if r["kind"] == "control" and "error" not in r]
+    # the hidden effect's own margin: the model without it over the full model, both fitted
+    # (E, nu) by the diagnosis; the issue's target counts the draws where it is >= 1.5
+    full = {r["name"]: r["rms"] for r in controls}
+    for r in hidden:
+        r["truth_margin"] = r["rms"] / full[r["name"]] if full.get(r["name"]) else None
     errors = [r for r in rows if "error" in r]
-    print("| draw | hidden | geometry | clamp | motion | observation | sigma | named | alternatives | margin | floor/sigma | short refit/sigma | refit/sigma | s |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| draw | hidden | geometry | clamp | motion | observation | sigma | named | alternatives | margin | truth margin | floor/sigma | short refit/sigma | refit/sigma | s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     f = lambda v: "-" if v is None else f"{v:.3g}"
     for r in hidden:
-        print(f"| {r['name']} | {r['hidden']} | {r['geometry']} | {r['clamp']} | {r['motion']} | {r['observation']} | {r['sigma']} | {r['missing_effect'] or '-'} | {', '.join(r['alternatives']) or '-'} | {f(r['margin'])} | {f(r['floor_over_sigma'])} | {f(r['after_over_sigma'])} | {f(r.get('refit_over_sigma'))} | {r['seconds']:.0f} |")
+        print(f"| {r['name']} | {r['hidden']} | {r['geometry']} | {r['clamp']} | {r['motion']} | {r['observation']} | {r['sigma']} | {r['missing_effect'] or '-'} | {', '.join(r['alternatives']) or '-'} | {f(r['margin'])} | {f(r['truth_margin'])} | {f(r['floor_over_sigma'])} | {f(r['after_over_sigma'])} | {f(r.get('refit_over_sigma'))} | {r['seconds']:.0f} |")
     print()
     print("| draw | control: named | floor/sigma | s |")
     print("|---|---|---|---|")
@@ -224,14 +218,17 @@ def table(paths):
     n = len(hidden)
     first = sum(r["named_first"] for r in hidden)
     either = sum(r["named_or_alternative"] for r in hidden)
-    with_margin = sum(r["named_or_alternative"] and (r["margin"] or 0) >= 1.5 for r in hidden)
+    visible = [r for r in hidden if (r["truth_margin"] or 0) >= 1.5]
+    with_margin = sum(r["named_or_alternative"] for r in visible)
+    visible_first = sum(r["named_first"] for r in visible)
     alarms = sum(r["false_alarm"] for r in controls)
     floors = [r["floor_over_sigma"] for r in hidden + controls if r["floor_over_sigma"]]
     within = sum(abs(x - 1) <= 0.2 for x in floors)
     refits = [r.get("refit_over_sigma") for r in hidden if r["named_first"] and r.get("refit_over_sigma")]
     secs = sorted(r["seconds"] for r in hidden + controls)
     print()
-    print(f"hidden: named first {first}/{n}, first or alternative {either}/{n}, of those with margin >= 1.5: {with_margin}")
+    print(f"hidden: named first {first}/{n}, first or alternative {either}/{n}")
+    print(f"hidden with truth margin >= 1.5: named first {visible_first}/{len(visible)}, first or alternative {with_margin}/{len(visible)}")
     print(f"controls: false alarms {alarms}/{len(controls)}, Clopper-Pearson 95% upper bound {clopper_pearson_upper(alarms, len(controls)):.3f}")
     print(f"noise floor within +-20% of sigma: {within}/{len(floors)}")
     print(f"refit after adding the named (hidden) effect within 1.3 sigma: {sum(x <= 1.3 for x in refits)}/{len(refits)}")
@@ -254,7 +251,7 @@ def main():
     done = set()
     if a.out and os.path.exists(a.out):
         done = {(json.loads(l)["name"], json.loads(l)["kind"]) for l in open(a.out) if l.strip()}
-    for folder in scenarios(a.draws):
+    for folder in scenario_folders(a.draws):
         truth = json.load(open(os.path.join(folder, "truth.json")))
         text = open(os.path.join(folder, "scene.toml")).read()
         rng = np.random.default_rng([truth["seed"], 9])

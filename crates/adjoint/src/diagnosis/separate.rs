@@ -123,7 +123,6 @@ pub fn separating_motion(a: &Candidate, b: &Candidate) -> Result<Option<Separati
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnosis::effects::Probe;
 
     /// A refitted candidate of the tiny clamped bar with Rayleigh mass damping `alpha`.
     fn candidate(effect: &str, alpha: f64) -> Candidate {
@@ -132,23 +131,7 @@ mod tests {
         );
         let scene = Scene::parse(&text, std::path::Path::new("bar.toml")).unwrap();
         let model = scene.to_model();
-        Candidate {
-            effect: effect.into(),
-            probe: Probe::Score,
-            params: Vec::new(),
-            score: 1.0,
-            predicted_rms: 0.01,
-            rms_after: Some(0.01),
-            delta_bic: Some(-50.0),
-            values: Vec::new(),
-            suggestion: String::new(),
-            error: None,
-            model: Some(model),
-            frees: Vec::new(),
-            step: Vec::new(),
-            x: Vec::new(),
-            scene: Some(scene),
-        }
+        Candidate::refitted(effect, scene, model)
     }
 
     /// Two identical fitted models are not separated by any motion (difference 0 under the

@@ -1,5 +1,4 @@
 use super::*;
-use crate::diagnosis::effects::Probe;
 use crate::observations::ObservedPoint;
 
 fn motion<'a>(observations: &'a Observations, held: bool, surfaces: Vec<Vec<[f64; 3]>>) -> Motion<'a> {
@@ -110,23 +109,7 @@ fn judged_on_the_fitted_models_own_fall() {
         );
         let scene = Scene::parse(&text, std::path::Path::new("box.toml")).unwrap();
         let model = scene.build_simulation().unwrap().model;
-        Candidate {
-            effect: "drag".into(),
-            probe: Probe::Score,
-            params: Vec::new(),
-            score: 1.0,
-            predicted_rms: 0.01,
-            rms_after: Some(0.01),
-            delta_bic: Some(-50.0),
-            values: Vec::new(),
-            suggestion: String::new(),
-            error: None,
-            frees: Vec::new(),
-            model: Some(model),
-            step: Vec::new(),
-            x: Vec::new(),
-            scene: Some(scene),
-        }
+        Candidate::refitted("drag", scene, model)
     };
     let obs = Observations::new();
     // m = 0.008, A = 0.24: c = 1 gives v_t = 0.33, reached within the 0.4 s
