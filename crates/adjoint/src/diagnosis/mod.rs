@@ -26,6 +26,8 @@
 
 pub mod discretisation;
 pub mod effects;
+#[cfg(test)]
+mod fixture;
 pub mod floor;
 pub mod history;
 pub mod plausible;
@@ -426,8 +428,12 @@ pub fn diagnose(
         );
         search.refit_more(&mut candidates, |c| search.rank(c) > 0.0, progress, total);
         refitted_all = true;
+        let named = judged.as_ref().map(|j| j.effect.clone());
         (missing, alternatives) = pick(&candidates, rms, exact, settings);
-        judged = missing.and_then(|i| judge(&candidates[i]));
+        // judged again only when another effect is named now (one simulation each)
+        if missing.map(|i| &candidates[i].effect) != named.as_ref() {
+            judged = missing.and_then(|i| judge(&candidates[i]));
+        }
     }
     let mut passed_over = None;
     if let (Some(m), Some(j)) = (missing, judged.as_ref().filter(|j| j.implausible.is_some())) {

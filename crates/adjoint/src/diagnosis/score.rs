@@ -78,31 +78,6 @@ pub struct Candidate {
     pub scene: Option<Scene>,
 }
 
-impl Candidate {
-    /// A candidate refitted to `model` in `scene` (Delta BIC -50, rms 0.01), for tests of what
-    /// is done with a refit.
-    #[cfg(test)]
-    pub(crate) fn refitted(effect: &str, scene: Scene, model: Model) -> Candidate {
-        Candidate {
-            effect: effect.into(),
-            probe: Probe::Score,
-            params: Vec::new(),
-            score: 1.0,
-            predicted_rms: 0.01,
-            rms_after: Some(0.01),
-            delta_bic: Some(-50.0),
-            values: Vec::new(),
-            suggestion: String::new(),
-            error: None,
-            frees: Vec::new(),
-            model: Some(model),
-            step: Vec::new(),
-            x: Vec::new(),
-            scene: Some(scene),
-        }
-    }
-}
-
 /// The fitted model as given: its scene with the fitted values, the fitted unconstrained `x`
 /// of the base parameters, the base parameter set (with its field basis) and the cost.
 #[derive(Debug)]
