@@ -32,6 +32,7 @@ pub mod floor;
 pub mod history;
 pub mod plausible;
 pub mod residuals;
+mod scan;
 pub mod score;
 mod search;
 pub mod separate;

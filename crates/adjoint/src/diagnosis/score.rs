@@ -27,7 +27,7 @@
 //! effect must explain more than noise to be chosen.
 
 use super::effects::{DataContext, Effect, Probe};
-use super::Setup;
+use super::{scan, Setup};
 use crate::fit::{invert_small, scene_problem_reach, CostKind, FitObjective};
 use crate::optim::{minimize, EvalError, GaussNewtonObjective, GnEval, Objective, OptimParams, Optimizer};
 use crate::params::ParamSet;
@@ -321,8 +321,8 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
                 }
             }
         }
-        scan_magnitudes(&mut problem, base.x.len(), &mut start, best);
-        scan_step(&mut problem, base.x.len(), &x0, &c.step, &mut start, best);
+        scan::magnitudes(&mut problem, base.x.len(), &mut start, best);
+        scan::step(&mut problem, base.x.len(), &x0, &c.step, &mut start, best);
         let mut fit = fit_problem(&mut problem, &start, iterations);
         // the wrong model's base fit may have wandered off (a body made soft to stop where a
         // hidden ground stops it, the Poisson ratio pushed to its bound to mimic a hidden drag),
@@ -332,8 +332,8 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
         // noise-free data the floor is an upper bound, and the torus' hidden damping refitted
         // to 2.7e-4 under a floor of 4.7e-4 lost to drag at 3e-5; the second reaches 0)
         if let (Some(mut xs), Some(cost)) = (scene_start.filter(|xs| *xs != start), scene_cost) {
-            scan_magnitudes(&mut problem, base.x.len(), &mut xs, cost);
-            scan_step(&mut problem, base.x.len(), &x0, &c.step, &mut xs, cost);
+            scan::magnitudes(&mut problem, base.x.len(), &mut xs, cost);
+            scan::step(&mut problem, base.x.len(), &x0, &c.step, &mut xs, cost);
             if let Ok(other) = fit_problem(&mut problem, &xs, iterations) {
                 if fit.as_ref().map_or(true, |f| other.1.cost < f.1.cost) {
                     fit = Ok(other);
@@ -358,101 +358,6 @@ pub fn refit(setup: &Setup, base: &BaseFit, effect: &dyn Effect, c: &mut Candida
             c.model = Some(model);
         }
         Err(e) => c.error = Some(e.to_string()),
-    }
-}
-
-/// Decades tried per coordinate by [`scan_magnitudes`].
-const MAX_DECADES: usize = 8;
-
-/// Raises each of the effect's log coordinates of `start` (those from `first` on) by decades
-/// while the cost (`cost` at `start`) falls, at most [`MAX_DECADES`] each, within the box of
-/// [`ParamSet::bounds`]. An effect probed at a tiny neutral value (damping at 1e-4) is many
-/// e-folds from its value, and a log coordinate that far off moves about one e-fold per
-/// Levenberg-Marquardt iteration: the torus' mass damping (true 8) got from 1e-4 to 0.08 in the
-/// 8 iterations of a short refit, which then lost to a wrong effect. One forward run per decade
-/// tried.
-fn scan_magnitudes(problem: &mut Problem, first: usize, start: &mut [f64], mut cost: f64) {
-    let logs = problem.params.log_coordinates();
-    let bounds = problem.params.bounds(start);
-    for k in (first..start.len()).filter(|&k| logs[k]) {
-        for _ in 0..MAX_DECADES {
-            let mut x = start.to_vec();
-            x[k] += 10f64.ln();
-            if x[k] > bounds[k].1 {
-                break;
-            }
-            match problem.evaluate(&x) {
-                Ok(e) if e.cost < cost => {
-                    cost = e.cost;
-                    start[k] = x[k];
-                }
-                _ => break,
-            }
-        }
-    }
-}
-
-/// Doublings tried per coordinate by [`scan_step`].
-const MAX_DOUBLINGS: usize = 6;
-
-/// Stretches each of the effect's linear coordinates of `start` (those from `first` on that are
-/// not log coordinates), the largest displacement first, along its displacement from the probe
-/// value `x0` (the probe's step `step` where `start` has none), doubling it while the cost
-/// (`cost` at `start`) falls, at most [`MAX_DOUBLINGS`] times each, within the box of
-/// [`ParamSet::bounds`] (a stiffness field's log factors are left to the fit and its prior:
-/// the scan sees the data's cost alone). The probe's Gauss-Newton step is the linearisation's
-/// answer at the neutral value, and an effect that switches a nonlinearity on is far from
-/// linear there: gravity switched on under a body at rest just above a ground predicts
-/// `|g| = 0.75` where the truth is 10 (the cost falls monotonically to it), and
-/// Levenberg-Marquardt from 0.75 spent its 8 iterations on Young's modulus instead (the static
-/// squash on the ground couples `g` and `E`). Per coordinate, because the step's small
-/// components are its least certain: doubled with the large one, a sideways gravity made the
-/// bar slide. The largest component tries every doubling and keeps the best (a contact's
-/// timing makes the cost bumpy along it: a box's landing cost more at `g = 2.4` than at 1.2,
-/// and least near the true 10); the others stop at the first that does not lower the cost.
-/// One forward run per doubling tried.
-fn scan_step(
-    problem: &mut Problem,
-    first: usize,
-    x0: &[f64],
-    step: &[f64],
-    start: &mut [f64],
-    mut cost: f64,
-) {
-    let logs = problem.params.log_coordinates();
-    let field = problem.params.field_coordinates();
-    let mut linear: Vec<(usize, f64)> = (first..start.len())
-        .filter(|&k| !logs[k] && !field[k])
-        .map(|k| (k, start[k] - x0[k]))
-        .collect();
-    if linear.iter().all(|&(_, d)| d == 0.0) && step.len() == start.len() {
-        // `start` is the probe value: the first try is the step itself
-        for (k, d) in linear.iter_mut() {
-            *d = step[*k] / 2.0;
-        }
-    }
-    linear.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-    let bounds = problem.params.bounds(start);
-    for (i, (k, mut d)) in linear.into_iter().filter(|&(_, d)| d != 0.0).enumerate() {
-        let mut tried = start[k];
-        for _ in 0..MAX_DOUBLINGS {
-            d *= 2.0;
-            let mut x = start.to_vec();
-            x[k] = (x0[k] + d).clamp(bounds[k].0, bounds[k].1);
-            if x[k] == tried {
-                break; // on its bound
-            }
-            tried = x[k];
-            match problem.evaluate(&x) {
-                Ok(e) if e.cost < cost => {
-                    cost = e.cost;
-                    start[k] = x[k];
-                }
-                // the largest component walks the whole ladder
-                _ if i == 0 => {}
-                _ => break,
-            }
-        }
     }
 }
 
