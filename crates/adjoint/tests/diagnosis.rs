@@ -504,29 +504,32 @@ fn nothing_hidden() {
     }
 }
 
+/// A box of 0.4 x 0.3 x 0.3 at rest 2 cm above a ground (height 0.83), under gravity 10 with
+/// Rayleigh damping, 30 steps of 0.02 at resolution 12, with `effects` on.
+fn dropped_box(effects: &[&str]) -> Scene {
+    scene(
+        "[body]\nshape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.4, 0.3, 0.3] }\nresolution = 12\n",
+        3000.0,
+        "[gravity]\nacceleration = [0.0, -10.0, 0.0]\n[ground]\nheight = 0.83\n\
+         [damping]\nmass = 0.5\nstiffness = 0.001\n",
+        effects,
+        0.02,
+        30,
+    )
+}
+
 /// A box dropped 2 cm onto a ground the model lacks (issue 50: such a box was once called
 /// `missing: drag`, a drag so strong that it sank at its terminal velocity). The ground is
 /// named and plausible (the fitted body rests on the plane); drag, refitted too, explains the
 /// landing only by holding up most of the weight, and its values are judged implausible.
 #[test]
 fn box_dropped_onto_a_missing_ground() {
-    let make = |effects: &[&str]| {
-        scene(
-            "[body]\nshape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.4, 0.3, 0.3] }\nresolution = 12\n",
-            3000.0,
-            "[gravity]\nacceleration = [0.0, -10.0, 0.0]\n[ground]\nheight = 0.83\n\
-             [damping]\nmass = 0.5\nstiffness = 0.001\n",
-            effects,
-            0.02,
-            30,
-        )
-    };
     let case = Case::observe(
-        &make(&["gravity", "ground", "damping", "corotation"]),
+        &dropped_box(&["gravity", "ground", "damping", "corotation"]),
         0.002,
         |_, _| {},
     );
-    let d = case.diagnose(&make(&["gravity", "damping", "corotation"]));
+    let d = case.diagnose(&dropped_box(&["gravity", "damping", "corotation"]));
     assert_eq!(d.missing_effect.as_deref(), Some("ground"), "{}", d.verdict);
     let named = &d.plausibility[0];
     assert_eq!(named.effect, "ground");
@@ -558,23 +561,12 @@ fn box_dropped_onto_a_missing_ground() {
 /// probe's step (`diagnosis::scan::step`) brings it to the truth, and gravity is named.
 #[test]
 fn box_dropped_with_gravity_hidden() {
-    let make = |effects: &[&str]| {
-        scene(
-            "[body]\nshape = { kind = \"box\", center = [0.0, 1.0, 0.0], size = [0.4, 0.3, 0.3] }\nresolution = 12\n",
-            3000.0,
-            "[gravity]\nacceleration = [0.0, -10.0, 0.0]\n[ground]\nheight = 0.83\n\
-             [damping]\nmass = 0.5\nstiffness = 0.001\n",
-            effects,
-            0.02,
-            30,
-        )
-    };
     let case = Case::observe(
-        &make(&["gravity", "ground", "damping", "corotation"]),
+        &dropped_box(&["gravity", "ground", "damping", "corotation"]),
         0.002,
         |_, _| {},
     );
-    let d = case.diagnose(&make(&["ground", "damping", "corotation"]));
+    let d = case.diagnose(&dropped_box(&["ground", "damping", "corotation"]));
     let gravity = d
         .candidates
         .iter()
