@@ -13,6 +13,12 @@
 //! | `damping` (`D = a1 M + a2 K`) | the damping ratio `zeta = a1 / (2 w) + a2 w / 2` at the recorded deformation's frequency `w` (held body; `w^2 = u^T K u / u^T M u` at its most strained frame, a Rayleigh quotient); on a free body, `a1` is a drag on the rigid motion with terminal velocity `g / a1` | a free body: `a1 v_max > g / 2` (as for drag) |
 //! | `ground` (`n . x >= h`) | the body's closest approach to the plane | the body never comes within `max(h_grid, 3 sigma)` of it (it cannot act), or more than 1% of the observed points lie more than `max(3 sigma, h_grid / 2)` below it (the body passes through) |
 //! | `stiffness_field` (factors `s_e` on `E`) | the contrast `max s_e / min s_e` | the contrast exceeds [`MAX_CONTRAST`] (not a variation of one material) |
+//! | `clamp` (springs `k` on the held surface) | the springs as a layer of the body's own material, thickness `(lambda + 2 mu) / k`; how far the held surface moves against the body's largest displacement | the held surface moves at least [`MAX_HELD_SHARE`] as far as any point of the body (it does not hold it) |
+//!
+//! Not judged: `gravity`, `initial_velocity` and `wind` (no bound holds in every unit system and
+//! every experiment: a scene's lengths and times are the user's), `corotation` (no values) and
+//! `friction` (its regularised coefficient `mu` is a Coulomb coefficient only through the
+//! sliding speed at each contact, `mu_C = mu v_t`, which the motion's summary does not hold).
 //!
 //! The thresholds are physical, not fitted to cases: half the weight is where drag, not gravity,
 //! sets the fall; 1% of points 3 sigma below a plane is 8 times what Gaussian noise puts there.
@@ -28,6 +34,10 @@ use std::sync::Arc;
 /// A stiffness field whose factors differ by more than this is a second material, not a
 /// variation of one (healthy and diseased soft tissue differ by up to about 10x).
 pub const MAX_CONTRAST: f64 = 1e3;
+
+/// A clamp whose held surface moves this share of the body's largest displacement or more does
+/// not hold the body (an imperfect clamp still holds its part more than the rest moves).
+pub const MAX_HELD_SHARE: f64 = 0.5;
 
 /// What the fitted model's own simulation over the recording shows.
 #[derive(Clone, Debug)]
@@ -281,6 +291,51 @@ pub fn plane(normal: [f64; 3], height: f64, motion: &Motion) -> Judgement {
     } else {
         None
     };
+    Judgement { implies, implausible }
+}
+
+/// A clamp's springs `stiffness` (traction per unit displacement) on the surface the `boxes` hold,
+/// for a material of P-wave modulus `p_modulus` (`lambda + 2 mu`), read against `motion`: the
+/// springs as a layer of the body's material, and how far the held part of the rest surface
+/// moves against the body's largest displacement (module docs).
+pub fn held(boxes: &[cutfem::fem::Aabb], stiffness: f64, p_modulus: f64, motion: &Motion) -> Judgement {
+    let short = effects::short;
+    let Some(rest) = motion.surfaces.first() else {
+        return Judgement {
+            implies: "no motion to read the clamp against".into(),
+            implausible: None,
+        };
+    };
+    let inside = |p: &[f64; 3]| {
+        boxes
+            .iter()
+            .any(|b| (0..3).all(|a| p[a] >= b.min[a] && p[a] <= b.max[a]))
+    };
+    let (mut held, mut largest) = (0.0f64, 0.0f64);
+    for frame in &motion.surfaces[1..] {
+        for (p, q) in rest.iter().zip(frame) {
+            let d = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>().sqrt();
+            largest = largest.max(d);
+            if inside(p) {
+                held = held.max(d);
+            }
+        }
+    }
+    let layer = p_modulus / stiffness;
+    let share = if largest > 0.0 { held / largest } else { 0.0 };
+    let implies = format!(
+        "the clamp's springs are as stiff as a layer {} thick of the body's own material; the held          surface moves up to {}, {:.0}% of the body's largest displacement {}",
+        short(layer),
+        short(held),
+        100.0 * share,
+        short(largest)
+    );
+    let implausible = (largest > 0.0 && share >= MAX_HELD_SHARE).then(|| {
+        format!(
+            "the clamp lets the held surface move {:.0}% as far as any point of the body: it does              not hold it (a clamp holds its part more than the rest moves); a support or a motion              the model lacks can move a body alike",
+            100.0 * share
+        )
+    });
     Judgement { implies, implausible }
 }
 

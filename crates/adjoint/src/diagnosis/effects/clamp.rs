@@ -20,7 +20,7 @@
 //! the deflection's shape along the body changes) and a diagnosis tells them apart by the fit
 //! of that shape.
 
-use super::{add_effect, short, DataContext, Effect, Probe};
+use super::{add_effect, short, DataContext, Effect, Judgement, Motion, Probe};
 use crate::params::Param;
 use crate::Error;
 use cutfem::fem::Model;
@@ -51,9 +51,8 @@ impl Effect for Clamp {
         !scene.dirichlet.is_empty()
     }
     fn switch_on(&self, scene: &mut Scene, data: &DataContext) -> Result<(), Error> {
-        let (young, nu) = (scene.material.young, scene.material.poisson);
-        let p_modulus = young * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu));
-        let stiffness = START_FACTOR * p_modulus / data.spacing;
+        let m = p_modulus(scene.material.young, scene.material.poisson);
+        let stiffness = START_FACTOR * m / data.spacing;
         ClampSection { stiffness }.set(scene);
         add_effect(scene, self.name());
         Ok(())
@@ -69,4 +68,14 @@ impl Effect for Clamp {
             short(model.support.unwrap_or(f64::INFINITY))
         )
     }
+    fn judge(&self, model: &Model, motion: &Motion) -> Option<Judgement> {
+        let k = model.support?;
+        let m = p_modulus(model.young, model.poisson);
+        Some(super::super::plausible::held(&model.dirichlet, k, m, motion))
+    }
+}
+
+/// The P-wave modulus `lambda + 2 mu` of Young's modulus `young` and Poisson's ratio `nu`.
+fn p_modulus(young: f64, nu: f64) -> f64 {
+    young * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu))
 }

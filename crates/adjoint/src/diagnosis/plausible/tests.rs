@@ -124,3 +124,44 @@ fn judged_on_the_fitted_models_own_fall() {
         "{air:?}"
     );
 }
+
+/// A clamp whose held surface moves half as far as the body's farthest point or more does not
+/// hold it; one whose held part barely moves does; its springs read as a layer of the body.
+#[test]
+fn a_clamp_that_lets_its_part_move_like_the_rest_is_implausible() {
+    let obs = Observations::new();
+    let boxes = [cutfem::fem::Aabb {
+        min: [-0.1, -1.0, -1.0],
+        max: [0.1, 1.0, 1.0],
+    }];
+    // a held vertex at x = 0 moving `root`, a free one at x = 1 moving 0.2
+    let swing = |root: f64| {
+        let rest = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
+        let bent = vec![[0.0, -root, 0.0], [1.0, -0.2, 0.0]];
+        vec![rest.clone(), bent, rest]
+    };
+    let firm = held(&boxes, 1e4, 100.0, &motion(&obs, true, swing(0.01)));
+    assert!(firm.implausible.is_none(), "{firm:?}");
+    assert!(
+        firm.implies.contains("a layer 0.01 thick") && firm.implies.contains("moves up to 0.01, 5%"),
+        "{firm:?}"
+    );
+    // just below and at half of the largest displacement
+    assert!(held(&boxes, 1e4, 100.0, &motion(&obs, true, swing(0.099)))
+        .implausible
+        .is_none());
+    let loose = held(&boxes, 10.0, 100.0, &motion(&obs, true, swing(0.1)));
+    assert!(
+        loose
+            .implausible
+            .as_deref()
+            .unwrap()
+            .contains("50% as far as any point"),
+        "{loose:?}"
+    );
+    // nothing moves: nothing to judge against
+    let still = vec![vec![[0.0; 3], [1.0, 0.0, 0.0]]; 2];
+    assert!(held(&boxes, 10.0, 100.0, &motion(&obs, true, still))
+        .implausible
+        .is_none());
+}
