@@ -265,7 +265,6 @@ impl TriMesh {
         let query = MeshQuery::new(self)?;
         let h = 1.0 / resolution;
         let mut grid = SdfGrid {
-            exact: None,
             origin,
             spacing: h,
             dims,

@@ -250,7 +250,6 @@ impl SdfGrid {
             )));
         }
         Ok(SdfGrid {
-            exact: None,
             origin,
             spacing,
             dims,
