@@ -306,17 +306,17 @@ pub fn held(boxes: &[cutfem::fem::Aabb], stiffness: f64, p_modulus: f64, motion:
             implausible: None,
         };
     };
-    let inside = |p: &[f64; 3]| {
-        boxes
-            .iter()
-            .any(|b| (0..3).all(|a| p[a] >= b.min[a] && p[a] <= b.max[a]))
-    };
+    // which rest vertices the boxes hold, once
+    let holds: Vec<bool> = rest
+        .iter()
+        .map(|p| boxes.iter().any(|b| b.contains(gpumat::Vec3::from_array(*p))))
+        .collect();
     let (mut held, mut largest) = (0.0f64, 0.0f64);
     for frame in &motion.surfaces[1..] {
-        for (p, q) in rest.iter().zip(frame) {
+        for ((p, q), &h) in rest.iter().zip(frame).zip(&holds) {
             let d = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>().sqrt();
             largest = largest.max(d);
-            if inside(p) {
+            if h {
                 held = held.max(d);
             }
         }

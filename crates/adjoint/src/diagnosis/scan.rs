@@ -49,8 +49,8 @@ const MAX_DOUBLINGS: usize = 6;
 /// value `x0` (the probe's step `step` where `start` has none), doubling it while the cost
 /// (`cost` at `start`) falls, at most [`MAX_DOUBLINGS`] times each, within the box of
 /// [`crate::params::ParamSet::bounds`] (a stiffness field's log factors are left to the fit
-/// and its prior: the scan sees the data's cost alone). The probe's Gauss-Newton step is the linearisation's
-/// answer at the neutral value, and an effect that switches a nonlinearity on is far from
+/// and its prior: the scan sees the data's cost alone). The probe's Gauss-Newton step is the
+/// linearisation's answer at the neutral value, and an effect that switches a nonlinearity on is far from
 /// linear there: gravity switched on under a body at rest just above a ground predicts
 /// `|g| = 0.75` where the truth is 10 (the cost falls monotonically to it), and
 /// Levenberg-Marquardt from 0.75 spent its 8 iterations on Young's modulus instead (the static

@@ -51,8 +51,9 @@ impl Effect for Clamp {
         !scene.dirichlet.is_empty()
     }
     fn switch_on(&self, scene: &mut Scene, data: &DataContext) -> Result<(), Error> {
-        let m = p_modulus(scene.material.young, scene.material.poisson);
-        let stiffness = START_FACTOR * m / data.spacing;
+        let (young, nu) = (scene.material.young, scene.material.poisson);
+        let p_modulus = young * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu));
+        let stiffness = START_FACTOR * p_modulus / data.spacing;
         ClampSection { stiffness }.set(scene);
         add_effect(scene, self.name());
         Ok(())
@@ -70,12 +71,12 @@ impl Effect for Clamp {
     }
     fn judge(&self, model: &Model, motion: &Motion) -> Option<Judgement> {
         let k = model.support?;
-        let m = p_modulus(model.young, model.poisson);
-        Some(super::super::plausible::held(&model.dirichlet, k, m, motion))
+        let (lambda, mu) = model.lame();
+        Some(super::super::plausible::held(
+            &model.dirichlet,
+            k,
+            lambda + 2.0 * mu,
+            motion,
+        ))
     }
-}
-
-/// The P-wave modulus `lambda + 2 mu` of Young's modulus `young` and Poisson's ratio `nu`.
-fn p_modulus(young: f64, nu: f64) -> f64 {
-    young * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu))
 }
