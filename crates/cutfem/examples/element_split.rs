@@ -3,8 +3,9 @@
 //! under gravity, clamped at x = 0 by Nitsche) for every element, with the faces on grid lines
 //! and shifted off them (cut cells), and with the Nitsche box one or two cell columns wide;
 //! then the model's geometry of the beam (volume, second moment of area, and how much of the
-//! end face the clamp box `x <= 0` holds: the refined SDF rounds the edges, so the face recedes
-//! from the box near them).
+//! end face the clamp box `x <= 0` holds: the box's exact distance at the refined cells'
+//! sub-nodes keeps its edges to a sub-cell; the spline of the node samples rounded them, and
+//! the face receded from the box near them).
 //!
 //! `cargo run --release -p cutfem --example element_split [h ...]`
 

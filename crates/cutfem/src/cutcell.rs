@@ -67,6 +67,11 @@
 //! 2. *interpolant*: the tensor-product Catmull-Rom spline of the stencil (tricubic, `C^1`
 //!    across cells, error `O(h^3)`, exact for affine functions and per axis for quadratics),
 //!    evaluated at the `(s + 1)^3` sub-nodes `h (m_x, m_y, m_z) / s`, `s` = [`SUBDIVISIONS`] = 3;
+//!    where the grid keeps the exact distance it was sampled from ([`crate::SdfGrid::exact`]:
+//!    analytic shapes), the sub-nodes take its values instead, on a finer sub-grid
+//!    ([`EXACT_SUBDIVISIONS`] = 6), so that edges and corners stay sharp to a sub-cell (the spline rounds a box's edge over about a cell; a clamp box that
+//!    ends at the box's end face then holds only 56-84% of that face at 20 cells per unit, all
+//!    of it but a sub-cell rim with the exact values: `docs/simulation.md`, "Element");
 //! 3. *limiter*: each sub-node value is clamped to the range of the snapped corner values of
 //!    the smallest part of the cell holding it (a corner keeps its value; a sub-node on an edge
 //!    stays between the edge's 2 corner values, on a face within its 4, inside within all 8),
@@ -143,8 +148,8 @@ pub(crate) use quadrature::add_box_moments;
 use quadrature::{add_tet, TRI_RULE};
 
 pub use refine::{
-    refined_cell_integrals, refined_cell_integrals_with, refined_sub_values, LIPSCHITZ_MAX, MAX_SUBDIVISIONS,
-    SUBDIVISIONS,
+    refined_cell_integrals, refined_cell_integrals_with, refined_sub_values, subdivisions,
+    EXACT_SUBDIVISIONS, LIPSCHITZ_MAX, MAX_SUBDIVISIONS, SUBDIVISIONS,
 };
 
 use crate::v3::{cross, dot, norm, sub};

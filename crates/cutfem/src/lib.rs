@@ -47,4 +47,4 @@ pub mod v3;
 
 pub use error::Error;
 pub use mesh::TriMesh;
-pub use sdf::SdfGrid;
+pub use sdf::{ExactSdf, SdfGrid};

@@ -18,6 +18,16 @@
 //! and [`SdfGrid::gradient`] is the exact gradient of that interpolant (piecewise constant in
 //! `f` along the differentiated axis, bilinear in the other two).
 //!
+//! # The exact distance beside the samples
+//!
+//! A grid made from an analytic shape ([`crate::Shape::to_sdf`]) also keeps the shape's exact
+//! distance function ([`SdfGrid::exact`]). The refined cut-cell integrals
+//! ([`crate::cutcell`], "Refinement") then read the sub-cell values from it instead of the
+//! Catmull-Rom interpolant of the nodes, so that the body's edges and corners stay sharp to a
+//! sub-cell (the interpolant rounds a box's edges over about a cell, and a clamp box ending at
+//! the end face then misses the face's outer ring: `docs/simulation.md`, "Element"). Grids
+//! read from files, resampled, padded or advected have none.
+//!
 //! # Files
 //!
 //! * the thesis `.sdf` binary ([`SdfGrid::read_sdf`], [`SdfGrid::write_sdf`]): int32
@@ -44,6 +54,9 @@ pub const MAX_NODES: usize = 1 << 26;
 /// y, then z (index `i + nx * (j + ny * k)`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SdfGrid {
+    /// the exact signed distance whose samples `values` are, when known (module docs, "The
+    /// exact distance beside the samples")
+    pub exact: Option<ExactSdf>,
     /// world position of node (0, 0, 0)
     pub origin: [f64; 3],
     /// distance between neighbouring nodes (the cell size h)
@@ -52,6 +65,30 @@ pub struct SdfGrid {
     pub dims: [usize; 3],
     /// SDF values in world units, x fastest
     pub values: Vec<f64>,
+}
+
+/// An exact signed distance function of world positions (negative inside), shared by the grids
+/// sampled from it. Two are equal when they are the same function object.
+#[derive(Clone)]
+pub struct ExactSdf(pub std::sync::Arc<dyn Fn([f64; 3]) -> f64 + Send + Sync>);
+
+impl ExactSdf {
+    /// The distance at `p`.
+    pub fn at(&self, p: [f64; 3]) -> f64 {
+        (self.0)(p)
+    }
+}
+
+impl std::fmt::Debug for ExactSdf {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("ExactSdf(..)")
+    }
+}
+
+impl PartialEq for ExactSdf {
+    fn eq(&self, other: &ExactSdf) -> bool {
+        std::sync::Arc::ptr_eq(&self.0, &other.0)
+    }
 }
 
 /// Rounds `x` to the nearest integer when it is within `1e-9` (relative) of it, so that
@@ -76,6 +113,7 @@ impl SdfGrid {
         f: impl Fn([f64; 3]) -> f64 + Sync,
     ) -> SdfGrid {
         let mut grid = SdfGrid {
+            exact: None,
             origin,
             spacing,
             dims,

@@ -203,7 +203,8 @@ impl Shape {
 
     /// Samples [`Shape::distance`] on a grid of spacing `1 / resolution` covering the bounding
     /// box plus `padding_cells` cells, nodes on multiples of the spacing
-    /// (`origin = floor(min / h - padding) h`, see [`SdfGrid::covering_grid`]).
+    /// (`origin = floor(min / h - padding) h`, see [`SdfGrid::covering_grid`]), and keeps the
+    /// distance itself as the grid's [`SdfGrid::exact`] (sharp edges in the refined cut cells).
     ///
     /// Errors for invalid parameters, a non-positive resolution, or too many nodes (checked
     /// before allocating).
@@ -211,8 +212,11 @@ impl Shape {
         self.validate()?;
         let (lo, hi) = self.bounding_box();
         let (origin, dims) = SdfGrid::covering_grid(lo, hi, resolution, padding_cells)?;
-        Ok(SdfGrid::from_fn(origin, 1.0 / resolution, dims, |p| {
-            self.distance(p)
-        }))
+        let mut grid = SdfGrid::from_fn(origin, 1.0 / resolution, dims, |p| self.distance(p));
+        let shape = self.clone();
+        grid.exact = Some(crate::sdf::ExactSdf(std::sync::Arc::new(move |p| {
+            shape.distance(p)
+        })));
+        Ok(grid)
     }
 }

@@ -30,6 +30,7 @@ fn sample(lo: [f64; 3], hi: [f64; 3], h: f64, pad: i64, f: impl Fn([f64; 3]) -> 
         }
     }
     SdfGrid {
+        exact: None,
         origin,
         spacing: h,
         dims,

@@ -90,7 +90,8 @@ fn cut_cells_sum_to_the_lumped_mass_and_integrate_linear_fields_exactly() {
 /// mass' kinetic energy is `1/2 I w^2` with the polar moment of inertia `I` of the grid's own
 /// body (its cut cells' exact moments) to rounding, the lumped mass' is about `2 h^2 / a^2`
 /// (10%, 4.6%) larger; both carry the same total mass, the body's volume. (The grid's body is
-/// the box up to its rounded edges: its volume is 1.8% above the box's at resolution 20.)
+/// the box up to a sub-cell chamfer of its edges: its volume is 0.04% below the box's at
+/// resolution 20.)
 #[test]
 fn spinning_bar_has_the_exact_rotational_inertia_with_the_consistent_mass() {
     use cutfem::cutcell::moment_index;
@@ -114,8 +115,10 @@ fn spinning_bar_has_the_exact_rotational_inertia_with_the_consistent_mass() {
         let (c, l) = (sim(MassMatrix::Consistent, res), sim(MassMatrix::Lumped, res));
         let h = c.grid.h();
         let center = c.center_of_mass();
+        // on the axis to a small fraction of a cell: the sub-cells' Kuhn tetrahedra are not
+        // mirror symmetric, so the edges' sub-cell chamfers differ slightly from side to side
         assert!(
-            (center.y - 1.0).abs() < 1e-5 && center.z.abs() < 1e-5,
+            (center.y - 1.0).abs() < 1e-3 * h && center.z.abs() < 1e-3 * h,
             "center {center:?}"
         );
         // int ((y - cy)^2 + (z - cz)^2) over the grid's body, from each cell's moments

@@ -5,7 +5,9 @@
 //! - coercive: the static stiffness of a cantilever held at one end is positive definite (its
 //!   Cholesky factorization succeeds) for every tested position of the body's faces in the
 //!   cells, including slivers of material and of held surface, for both elements and for
-//!   `nu` up to 0.49;
+//!   `nu` up to 0.49; toward incompressibility (`nu` up to 0.4999) it neither turns indefinite
+//!   nor softens (the incompatible element's traction uses the cell's mean dilatation,
+//!   `cutfem::fem::sim::dirichlet`);
 //! - unit-free: linear elasticity is invariant under scaling the modulus and the load together,
 //!   and so is the scaled clamp (a fixed `eta` is not);
 //! - no pinning: a hold box a tenth of a cell wider than the face it holds catches strips of
@@ -106,6 +108,48 @@ fn scaled_clamp_is_coercive_for_every_cut_position() {
         "not positive definite:\n{}",
         failures.join("\n")
     );
+}
+
+/// Toward incompressibility the clamp must not soften: a larger `lambda` at the same `E` can
+/// only stiffen the held beam (the clamp restrains its lateral contraction more), so the tip's
+/// deflection may not grow with `nu`. With the corner field's pointwise dilatation in the
+/// traction of the incompatible element (whose energy does not see that dilatation in bending)
+/// the form lost coercivity as `lambda / mu` grew: the held beam got softer from `nu = 0.49` on
+/// and indefinite near 0.497 (found by a fit of E and nu that ran to nu's bound with E +15%).
+#[test]
+fn scaled_clamp_stays_coercive_toward_incompressibility() {
+    let mut failures = Vec::new();
+    for element in [Element::Trilinear, Element::Incompatible] {
+        for (sx, sy) in [(0.0, 0.37), (0.5, 0.0), (0.98, 0.9)] {
+            let mut last: Option<(f64, f64)> = None;
+            for nu in [0.3, 0.45, 0.49, 0.495, 0.497, 0.499, 0.4999] {
+                let mut sim = beam(
+                    element,
+                    nu,
+                    2400.0,
+                    1.0,
+                    NitschePenalty::Scaled(DEFAULT_NITSCHE_GAMMA),
+                    [sx, sy],
+                    0.0,
+                );
+                let case = format!("{} offsets ({sx}, {sy}) nu {nu}", element.name());
+                match sim.solve_static() {
+                    Err(e) => failures.push(format!("{case}: {e}")),
+                    Ok(_) => {
+                        let d = -tip(&sim, sx);
+                        println!("{case}: tip {d:.6e}");
+                        if let Some((nu0, d0)) = last {
+                            if d > d0 * (1.0 + 1e-6) {
+                                failures.push(format!("{case}: tip {d:.6e} > {d0:.6e} at nu {nu0}"));
+                            }
+                        }
+                        last = Some((nu, d));
+                    }
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 #[test]

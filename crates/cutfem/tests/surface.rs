@@ -20,6 +20,7 @@ fn grid(lo: [f64; 3], hi: [f64; 3], h: f64, f: impl Fn([f64; 3]) -> f64) -> SdfG
         }
     }
     SdfGrid {
+        exact: None,
         origin: lo,
         spacing: h,
         dims,
@@ -243,6 +244,7 @@ fn random_field_trials(trials: usize) {
             }
         }
         let sdf = SdfGrid {
+            exact: None,
             origin: [0.0; 3],
             spacing: 0.1,
             dims,
@@ -266,6 +268,7 @@ fn random_field_trials(trials: usize) {
 #[test]
 fn degenerate_grids_give_empty_surfaces() {
     let flat = SdfGrid {
+        exact: None,
         origin: [0.0; 3],
         spacing: 1.0,
         dims: [1, 3, 3],
@@ -273,6 +276,7 @@ fn degenerate_grids_give_empty_surfaces() {
     };
     assert!(extract_surface(&flat).mesh.faces.is_empty());
     let full = SdfGrid {
+        exact: None,
         origin: [0.0; 3],
         spacing: 1.0,
         dims: [2, 2, 2],

@@ -5,9 +5,14 @@
 //! degree-4 rule), so the weights `w_b` and the mean normal are those of exactly the surface
 //! inside the box, whatever the resolution.
 
-use super::refine::{refined_in, SUBDIVISIONS};
+use super::refine::{refined_in, subdivisions};
 use super::{CellIntegrals, SurfacePoint, P3};
 use crate::SdfGrid;
+
+/// The box is widened by this many cells on every side before clipping, so that a face of the
+/// body lying on a plane of the box (a clamp box ending at the body's end face) is held whichever
+/// way the rounding of its computed position falls.
+const BOUNDARY_TOL: f64 = 1e-9;
 
 /// At most 3 + 6 vertices after clipping a triangle by six planes.
 const MAX_POLY: usize = 9;
@@ -54,7 +59,7 @@ pub(super) fn clip_triangle(v: [P3; 3], b: &[P3; 2], mut f: impl FnMut([P3; 3]))
 /// [`super::refined_cell_integrals`]; the volume fields are those of the whole cell), and the
 /// quadrature points of that part of the surface (the degree-4 rule on each clipped triangle;
 /// positions on the cell's unit cube, world weights): the Nitsche terms of the held surface
-/// ([`crate::fem::NitscheFace`]).
+/// ([`crate::fem::NitscheFace`]). The box's boundary counts as inside ([`BOUNDARY_TOL`]).
 pub fn refined_surface_in_box(
     sdf: &SdfGrid,
     cell: [usize; 3],
@@ -62,6 +67,14 @@ pub fn refined_surface_in_box(
     hi: [f64; 3],
 ) -> (CellIntegrals, Vec<SurfacePoint>) {
     let h = sdf.spacing;
-    let unit = |p: [f64; 3]| -> P3 { std::array::from_fn(|d| (p[d] - sdf.origin[d]) / h - cell[d] as f64) };
-    refined_in(sdf, cell, SUBDIVISIONS, Some([unit(lo), unit(hi)]), true)
+    let unit = |p: [f64; 3], out: f64| -> P3 {
+        std::array::from_fn(|d| (p[d] - sdf.origin[d]) / h - cell[d] as f64 + out * BOUNDARY_TOL)
+    };
+    refined_in(
+        sdf,
+        cell,
+        subdivisions(sdf),
+        Some([unit(lo, -1.0), unit(hi, 1.0)]),
+        true,
+    )
 }

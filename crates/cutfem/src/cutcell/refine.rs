@@ -13,8 +13,24 @@ use crate::SdfGrid;
 /// [`super::grid_integrals`] and the FEM grid).
 pub const SUBDIVISIONS: usize = 3;
 
+/// Sub-cells per axis where the grid keeps its exact distance ([`SdfGrid::exact`]): the
+/// sub-cells' linear interpolation is then the only error, and it cuts the body's edges by a
+/// chamfer of up to half a sub-cell (a twisting bar's fitted nu moved by +0.029 with 3, +0.005
+/// with 6: `docs/simulation.md`, "Element").
+pub const EXACT_SUBDIVISIONS: usize = 6;
+
 /// The largest `s` [`refined_cell_integrals_with`] accepts.
 pub const MAX_SUBDIVISIONS: usize = 6;
+
+/// The sub-cells per axis of the refined integration of `sdf`: [`EXACT_SUBDIVISIONS`] where it
+/// keeps its exact distance, else [`SUBDIVISIONS`].
+pub fn subdivisions(sdf: &SdfGrid) -> usize {
+    if sdf.exact.is_some() {
+        EXACT_SUBDIVISIONS
+    } else {
+        SUBDIVISIONS
+    }
+}
 
 /// A cell is refined only if neighbouring stencil values differ by at most this many cell
 /// sizes (a true SDF: at most 1); otherwise (far-field sentinels, non-finite values, wildly
@@ -130,7 +146,7 @@ fn is_tame(f: &Stencil, h: f64) -> bool {
 /// The sub-node values of a refined cell: `[z][y][x]`, indices `0..=s`.
 type SubValues = [[[f64; N1]; N1]; N1];
 
-/// The integrals of cell `cell` of `sdf` with the refined method and [`SUBDIVISIONS`]
+/// The integrals of cell `cell` of `sdf` with the refined method and [`subdivisions`]
 /// sub-cells per axis (see the module docs of [`crate::cutcell`], "Refinement"): all-zero for
 /// an inactive cell, [`CellIntegrals::full`] for a cell whose corners are all inside, and
 /// exactly [`cell_integrals`] of the corner values where the cell is not refined (a stencil that
@@ -139,7 +155,7 @@ type SubValues = [[[f64; N1]; N1]; N1];
 /// # Panics
 /// If the cell is outside the grid or the spacing is not positive and finite.
 pub fn refined_cell_integrals(sdf: &SdfGrid, cell: [usize; 3]) -> CellIntegrals {
-    refined_cell_integrals_with(sdf, cell, SUBDIVISIONS)
+    refined_cell_integrals_with(sdf, cell, subdivisions(sdf))
 }
 
 /// [`refined_cell_integrals`] with `s` sub-cells per axis (`1..=MAX_SUBDIVISIONS`; `s = 1` is
@@ -272,10 +288,16 @@ fn sub_values(sdf: &SdfGrid, cell: [usize; 3], s: usize) -> Option<SubValues> {
     }
     let mut v: SubValues = [[[0.0; N1]; N1]; N1];
     let hs = h / s as f64;
+    // The sub-node's world position from its integer index on the sub-lattice, so that a
+    // sub-node on a shared face has bitwise the same position from both cells.
+    let at = |a: usize, m: usize| sdf.origin[a] + h * ((cell[a] * s + m) as f64 / s as f64);
     for mz in 0..=s {
         for my in 0..=s {
             for mx in 0..=s {
-                let val = (0..4).fold(0.0, |acc, c| acc + w[mz][c] * gy[c][my][mx]);
+                let val = match &sdf.exact {
+                    Some(e) => e.at([at(0, mx), at(1, my), at(2, mz)]),
+                    None => (0..4).fold(0.0, |acc, c| acc + w[mz][c] * gy[c][my][mx]),
+                };
                 // Limiter: clamp to the range of the corner values of the smallest parent
                 // feature (corner, edge, face or the cell) holding the sub-node.
                 let m = [mx, my, mz];

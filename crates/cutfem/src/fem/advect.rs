@@ -191,6 +191,7 @@ pub fn advect_with(
     let (mut values, filled) = splat(&sources, dims, settings);
     flood_fill(&mut values, &filled, dims);
     Ok(SdfGrid {
+        exact: None,
         origin,
         spacing: h,
         dims,

@@ -19,7 +19,7 @@ mod blocks;
 mod enhanced;
 
 pub use blocks::{BlockCache, ElementBlocks};
-pub use enhanced::{gram, Element, ElementSet, Gram, FICTITIOUS_STIFFNESS, MONOMIALS};
+pub use enhanced::{gram, mean_gradients, Element, ElementSet, Gram, FICTITIOUS_STIFFNESS, MONOMIALS};
 
 /// `grad N_i` at corner `c` of a cell of size `h`.
 pub fn basis_gradient(i: usize, c: usize, h: f64) -> Vec3<f64> {

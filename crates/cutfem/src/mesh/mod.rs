@@ -265,6 +265,7 @@ impl TriMesh {
         let query = MeshQuery::new(self)?;
         let h = 1.0 / resolution;
         let mut grid = SdfGrid {
+            exact: None,
             origin,
             spacing: h,
             dims,

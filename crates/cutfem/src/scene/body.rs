@@ -173,6 +173,7 @@ pub fn pad(g: &crate::SdfGrid, cells: usize) -> Result<crate::SdfGrid, String> {
         }
     }
     Ok(crate::SdfGrid {
+        exact: None,
         origin,
         spacing: h,
         dims,

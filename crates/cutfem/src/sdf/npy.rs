@@ -250,6 +250,7 @@ impl SdfGrid {
             )));
         }
         Ok(SdfGrid {
+            exact: None,
             origin,
             spacing,
             dims,

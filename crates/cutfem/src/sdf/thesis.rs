@@ -96,6 +96,7 @@ impl SdfGrid {
             values.push(v as f64 / resolution as f64);
         }
         Ok(SdfGrid {
+            exact: None,
             origin: offset.map(|o| o as f64 / resolution as f64),
             spacing: scale,
             dims,

@@ -72,11 +72,13 @@ fn grid_validation_errors() {
     let thin = SdfGrid::from_fn([0.0; 3], 0.1, [1, 3, 3], |_| -1.0);
     assert!(thin.validate().is_err());
     let neg = SdfGrid {
+        exact: None,
         spacing: -0.1,
         ..SdfGrid::from_fn([0.0; 3], 0.1, [2, 2, 2], |_| -1.0)
     };
     assert!(neg.validate().is_err());
     let short = SdfGrid {
+        exact: None,
         values: vec![-1.0; 7],
         ..neg.clone()
     };

@@ -39,6 +39,7 @@ pub fn sample(res: usize, half: f64, f: impl Fn([f64; 3]) -> f64) -> SdfGrid {
         }
     }
     SdfGrid {
+        exact: None,
         origin,
         spacing: h,
         dims: [n; 3],

@@ -28,6 +28,7 @@ pub fn sample(lo: [f64; 3], hi: [f64; 3], h: f64, pad: usize, f: impl Fn([f64; 3
         }
     }
     SdfGrid {
+        exact: None,
         origin,
         spacing: h,
         dims,

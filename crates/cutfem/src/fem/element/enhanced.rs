@@ -63,9 +63,11 @@
 //! ([`ElementSet::lame_derivatives`], checked against central differences in
 //! `adjoint/tests/local.rs`).
 //!
-//! The Nitsche terms (eq. 4.4.15-4.4.17) use the traction of the corner field: the bubbles are
-//! internal strain enhancements of the cell (the enhanced-assumed-strain reading of the
-//! incompatible modes), not part of the displacement the Dirichlet condition holds.
+//! The Nitsche terms (eq. 4.4.15-4.4.17) use the traction of the corner field, its volumetric
+//! part from the cell's mean dilatation ([`mean_gradients`]; `fem::sim::dirichlet`, "The
+//! volumetric traction"): the bubbles are internal strain enhancements of the cell (the
+//! enhanced-assumed-strain reading of the incompatible modes), not part of the displacement
+//! the Dirichlet condition holds.
 
 use super::CORNER_SIGNS;
 use crate::cutcell::{moment_index, CellIntegrals};
@@ -282,6 +284,19 @@ fn inside_gradient_weights(g: &Gram, grads: &[[Poly; 3]; MODES]) -> [Vec3<f64>; 
         let mean = |q: usize| (0..MONOMIALS).map(|m| grads[i][q][m] * g[m][0]).sum::<f64>() / volume;
         Vec3::new(4.0 * mean(0), 4.0 * mean(1), 4.0 * mean(2))
     })
+}
+
+/// The mean world gradients `(1/|Omega_e|) int_{Omega_e} grad N_i` of the 8 corner functions
+/// over a cell's inside part (Gram matrix `g` from [`gram`], cell size `h`): the cell's mean
+/// dilatation is `sum_i gbar_i . u_i`. Zero for an empty part.
+pub fn mean_gradients(g: &Gram, h: f64) -> [Vec3<f64>; 8] {
+    let volume = g[0][0];
+    if volume.is_nan() || volume <= 0.0 {
+        return [Vec3::default(); 8];
+    }
+    let grads = mode_gradients(g, false);
+    // a_i = 4 mean(grad_xi N_i); the world gradient is grad_xi / h
+    inside_gradient_weights(g, &grads).map(|a| a * (0.25 / h))
 }
 
 /// Relative pivot below which a bubble is dropped from the condensation.

@@ -11,23 +11,42 @@
 //! (`sigma(N_j e_r) n` has components `mu (d_p N_j n_r + delta_pr grad N_j . n) + lambda n_p
 //! d_r N_j`). Two quadratures ([`NitscheQuadrature`], `[numerics] nitsche`):
 //!
-//! - `thesis` (default; eq. 4.4.15-4.4.17): nodal, `P_ij = delta_ij w_b(e, i)` and
+//! - `thesis` (eq. 4.4.15-4.4.17): nodal, `P_ij = delta_ij w_b(e, i)` and
 //!   `G_ij = w_b(e, i) grad N_j(v_i) (x) n` with the nodal weights `w_b` of eq. 4.2.3 over the
 //!   held part, the basis gradient at corner `i` and the cell's mean normal `n` (`grad N_j(v_i)`
 //!   vanishes unless `i` and `j` are equal or share an edge);
-//! - `consistent`: the integrals over the surface quadrature points of the held part
+//! - `consistent` (the default): the integrals over the surface quadrature points of the held part
 //!   ([`crate::cutcell::refined_surface_in_box`]), each with its own normal. The nodal rule puts
 //!   a weight proportional to the held area on corners a whole cell away from it, so a sliver
 //!   of held surface (a strip of side face caught by a box a little wider than the face it
 //!   holds) pins the cell's far corners; consistent quadrature weighs them by `N_i N_j`, which
 //!   vanishes there (`docs/simulation.md`, "Nitsche").
+//!
+//! # The volumetric traction
+//!
+//! The part of `sigma(u) n` per unit of `lambda` is `div u n`: the block above carries it as
+//! `lambda D_ij` with `D_ij = G_ij^T` (`[p][r] = int N_i n_p d_r N_j`, the pointwise
+//! dilatation of the corner field). For the elements with incompatible modes that is not the
+//! dilatation their energy sees: in bending the corner field has a dilatation `eps_xx` that
+//! the bubbles cancel, so the energy holds no `lambda` term for it while the traction holds
+//! `lambda eps_xx`. The form then needs a penalty growing like `lambda^2 / mu` to stay
+//! coercive; with the scaled one (`~ lambda + 2 mu`) a held beam softened from `nu = 0.49` on
+//! and turned indefinite near 0.497 (`tests/fem_nitsche.rs`). These elements therefore use the
+//! cell's mean dilatation, `D_ij = b_i (x) gbar_j` with `b_i = int N_i n` over the held
+//! surface and `gbar_j = (1/|Omega_e|) int_{Omega_e} grad N_j` (the B-bar reading of the
+//! volumetric stress). Its energy bounds it whatever `lambda`: the bubbles are mean-free, so
+//! the mean dilatation of the enhanced field is the corner field's, and
+//! `int_{Omega_e} lambda (div u)^2 >= lambda |Omega_e| (mean div u)^2`. The consistency error
+//! is `O(h)` (the mean against the surface value), the order of the element's stress. The
+//! block stays linear in `(lambda, mu, eta)`, so the adjoint's Lame derivatives read it as
+//! before.
 
 use std::sync::Arc;
 
 use gpumat::{Mat3, Vec3};
 
 use crate::error::Error;
-use crate::fem::element::basis_gradient;
+use crate::fem::element::{basis_gradient, gram, mean_gradients, Element};
 use crate::fem::grid::Grid;
 use crate::fem::model::{Model, NitscheQuadrature};
 
@@ -53,6 +72,13 @@ struct NitscheTerms {
     mass: [[f64; 8]; 8],
     /// `G_ij = int N_i grad N_j (x) n`, row-major 3x3 (`[p][r] = int N_i d_p N_j n_r`)
     traction: [[Mat3<f64>; 8]; 8],
+    /// `D_ij`, the part of the traction per unit of `lambda` (module docs, "The volumetric
+    /// traction"): `G_ij^T` (`[p][r] = int N_i n_p d_r N_j`) for the plain trilinear
+    /// elements, `b_i (x) gbar_j` with the cell's mean dilatation for the elements with
+    /// incompatible modes
+    volumetric: [[Mat3<f64>; 8]; 8],
+    /// `b_i = int N_i n` over the held surface
+    normal_weight: [Vec3<f64>; 8],
 }
 
 impl NitscheFace {
@@ -60,16 +86,18 @@ impl NitscheFace {
     #[inline]
     pub fn block(&self, i: usize, j: usize, lambda: f64, mu: f64, eta: f64) -> Mat3<f64> {
         let t = &self.terms;
-        let k = traction(&t.traction[i][j], lambda, mu) + traction(&t.traction[j][i], lambda, mu).transpose();
+        let tr = |i: usize, j: usize| traction(&t.traction[i][j], &t.volumetric[i][j], lambda, mu);
+        let k = tr(i, j) + tr(j, i).transpose();
         Mat3::from_scalar(eta * t.mass[i][j]) - k
     }
 }
 
-/// `T(G)_pr = mu G_pr + lambda G_rp + delta_pr mu tr G`.
+/// `T(G, D)_pr = mu G_pr + lambda D_pr + delta_pr mu tr G` (`D = G^T` for the pointwise
+/// dilatation).
 #[inline(always)]
-fn traction(g: &Mat3<f64>, lambda: f64, mu: f64) -> Mat3<f64> {
+fn traction(g: &Mat3<f64>, d: &Mat3<f64>, lambda: f64, mu: f64) -> Mat3<f64> {
     let tr = g.trace();
-    *g * mu + g.transpose() * lambda + Mat3::from_scalar(mu * tr)
+    *g * mu + *d * lambda + Mat3::from_scalar(mu * tr)
 }
 
 /// The thesis' nodal terms (module docs): `P_ij = delta_ij w_b(e, i)`, `G_ij = w_b(e, i)
@@ -80,6 +108,23 @@ fn nodal_terms(f: &NitscheFace, h: f64, terms: &mut NitscheTerms) {
         for j in 0..8 {
             terms.mass[i][j] = if i == j { f.boundary[i] } else { 0.0 };
             terms.traction[i][j] = basis_gradient(j, i, h).outer(n) * f.boundary[i];
+        }
+        terms.normal_weight[i] = n * f.boundary[i];
+    }
+}
+
+/// The volumetric traction `D_ij` (module docs): `G_ij^T`, or with the incompatible modes
+/// `b_i (x) gbar_j` with the mean gradients of the cell's inside part.
+fn volumetric_terms(c: &crate::fem::grid::Cell, h: f64, element: Element, terms: &mut NitscheTerms) {
+    let mean = element
+        .has_modes()
+        .then(|| mean_gradients(&gram(&c.integrals, h, element), h));
+    for i in 0..8 {
+        for j in 0..8 {
+            terms.volumetric[i][j] = match &mean {
+                Some(g) => terms.normal_weight[i].outer(g[j]),
+                None => terms.traction[i][j].transpose(),
+            };
         }
     }
 }
@@ -147,6 +192,7 @@ pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheF
                 let n = Vec3::from_array(q.normal);
                 for i in 0..8 {
                     let wi = q.weight * nv[i];
+                    f.1.normal_weight[i] = f.1.normal_weight[i] + n * wi;
                     for j in 0..8 {
                         f.1.mass[i][j] += wi * nv[j];
                         f.1.traction[i][j] = f.1.traction[i][j] + g[j].outer(n) * wi;
@@ -178,6 +224,7 @@ pub fn dirichlet_cells(grid: &Grid, model: &Model) -> Result<Vec<Option<NitscheF
                 if model.nitsche_quadrature == NitscheQuadrature::Thesis {
                     nodal_terms(&f, h, &mut terms);
                 }
+                volumetric_terms(c, h, model.element, &mut terms);
                 f.terms = Arc::new(terms);
                 f
             })
