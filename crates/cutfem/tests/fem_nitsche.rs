@@ -152,6 +152,33 @@ fn scaled_clamp_stays_coercive_toward_incompressibility() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// A simulation whose model is replaced (`Simulation::set_model`: the fits and the diagnosis
+/// change models in place) holds its clamp as one built with the new model does, when the
+/// element or the Nitsche quadrature changes (the held cells' terms depend on both).
+#[test]
+fn a_replaced_model_holds_as_a_fresh_one() {
+    let penalty = NitschePenalty::Scaled(DEFAULT_NITSCHE_GAMMA);
+    for (from, to) in [
+        (Element::Trilinear, Element::Incompatible),
+        (Element::Incompatible, Element::Trilinear),
+    ] {
+        let mut fresh = beam(to, 0.45, 2400.0, 1.0, penalty, [0.5, 0.37], 0.0);
+        fresh.solve_static().expect("fresh");
+        let mut replaced = beam(from, 0.45, 2400.0, 1.0, penalty, [0.5, 0.37], 0.0);
+        let mut model = replaced.model.clone();
+        model.element = to;
+        replaced.set_model(model).expect("set_model");
+        replaced.solve_static().expect("replaced");
+        let (a, b) = (tip(&fresh, 0.5), tip(&replaced, 0.5));
+        assert!(
+            (a - b).abs() <= 1e-12 * a.abs(),
+            "{} -> {}: {a} vs {b}",
+            from.name(),
+            to.name()
+        );
+    }
+}
+
 #[test]
 fn scaled_clamp_is_invariant_under_scaling_modulus_and_load() {
     for element in [Element::Trilinear, Element::Incompatible] {

@@ -159,7 +159,7 @@ impl Simulation {
     }
 
     /// Replaces the model, keeping the state `(u, v)` (the mass and the Nitsche cells follow
-    /// the new density and Dirichlet boxes).
+    /// the new density, Dirichlet boxes, Nitsche quadrature and element).
     pub fn set_model(&mut self, model: Model) -> Result<(), Error> {
         model.validate()?;
         model.check_external_dofs(self.grid.dofs())?;
@@ -172,7 +172,12 @@ impl Simulation {
                 )));
             }
         }
-        if model.dirichlet != self.model.dirichlet {
+        // the Nitsche cells depend on the boxes, their quadrature and the element (its
+        // volumetric traction, `dirichlet`)
+        fn held(m: &Model) -> (&[super::Aabb], super::NitscheQuadrature, super::element::Element) {
+            (&m.dirichlet, m.nitsche_quadrature, m.element)
+        }
+        if held(&model) != held(&self.model) {
             self.dirichlet = dirichlet_cells(&self.grid, &model)?;
         }
         if model.density != self.model.density {
